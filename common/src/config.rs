@@ -1,0 +1,803 @@
+//! The configuration tree: one TOML file, parsed with unknown keys refused, then validated.
+//!
+//! Every field has a documented default, unit and range; every interpretation of the paper
+//! (SPEC "(interpretation)") is a field here. Parsing and validation are two steps: serde
+//! checks types and names, [`Config::validate`] checks ranges and cross-field rules.
+
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// A configuration problem, always naming the field or file it is about.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum ConfigError {
+    #[error("cannot read config {path}: {reason}")]
+    Read { path: PathBuf, reason: String },
+    #[error("{path}:{line}:{column}: {message}")]
+    Parse {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        message: String,
+    },
+    #[error("config field `{field}` = {value}: {reason}")]
+    Invalid {
+        field: &'static str,
+        value: String,
+        reason: String,
+    },
+}
+
+fn invalid(
+    field: &'static str,
+    value: impl std::fmt::Debug,
+    reason: impl Into<String>,
+) -> ConfigError {
+    ConfigError::Invalid {
+        field,
+        value: format!("{value:?}"),
+        reason: reason.into(),
+    }
+}
+
+/// Checks `lo <= value <= hi` (and finiteness) for one field.
+fn in_range(field: &'static str, value: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(invalid(field, value, format!("must be in [{lo}, {hi}]")))
+    }
+}
+
+fn count_in(field: &'static str, value: usize, lo: usize, hi: usize) -> Result<(), ConfigError> {
+    if (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(invalid(field, value, format!("must be in [{lo}, {hi}]")))
+    }
+}
+
+/// The whole configuration of a run.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct Config {
+    pub run: RunConfig,
+    pub sim: SimConfig,
+    pub ppo: PpoConfig,
+    pub estimator: EstimatorConfig,
+}
+
+/// How runs are named, seeded and paced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct RunConfig {
+    /// Master seed; every process derives its streams from it. Any u64. Default 1.
+    pub seed: u64,
+    /// `sync`: the sim waits for the policy learned from each rollout (on-policy PPO);
+    /// `async`: the sim never waits. Default `sync`.
+    pub mode: LearnMode,
+    /// Total environment steps (decision steps summed over envs) to train for. Default 2.5 M
+    /// (SPEC S6). Range 1 ..= 10^10.
+    pub total_steps: u64,
+    /// Directory under which each run gets `<out-dir>/<run-id>/`. Default `runs`.
+    pub out_dir: PathBuf,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LearnMode {
+    Sync,
+    Async,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            mode: LearnMode::Sync,
+            total_steps: 2_500_000,
+            out_dir: PathBuf::from("runs"),
+        }
+    }
+}
+
+/// Which training area an env lives in (SPEC S1).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AreaKind {
+    Flat,
+    Rough,
+}
+
+impl AreaKind {
+    /// The wire and CSV code: 0 flat, 1 rough.
+    pub fn code(self) -> u8 {
+        match self {
+            AreaKind::Flat => 0,
+            AreaKind::Rough => 1,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AreaKind::Flat => "flat",
+            AreaKind::Rough => "rough",
+        }
+    }
+}
+
+/// An axis-aligned rectangle on the ground (X-Z plane), metres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Rect {
+    /// [min, max] along X, metres.
+    pub x: [f64; 2],
+    /// [min, max] along Z, metres.
+    pub z: [f64; 2],
+}
+
+impl Rect {
+    pub fn contains(&self, x: f64, z: f64, margin: f64) -> bool {
+        x >= self.x[0] - margin
+            && x <= self.x[1] + margin
+            && z >= self.z[0] - margin
+            && z <= self.z[1] + margin
+    }
+
+    pub fn center(&self) -> [f64; 2] {
+        [0.5 * (self.x[0] + self.x[1]), 0.5 * (self.z[0] + self.z[1])]
+    }
+}
+
+/// The simulator: envs, physics timing, terrain, robot and task rules.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct SimConfig {
+    /// Envs in the flat area. 0 ..= 1024. Default 9 (SPEC S6, initial flat model).
+    pub flat_envs: usize,
+    /// Envs in the rough area. 0 ..= 1024. Default 0.
+    pub rough_envs: usize,
+    /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
+    pub threads: usize,
+    /// Physics time step, seconds. SPEC S2 (interpretation: Unity's default). (0, 0.1]. Default 0.02.
+    pub physics_dt: f64,
+    /// Physics steps per decision step. SPEC S2. 1 ..= 100. Default 5.
+    pub substeps: usize,
+    pub terrain: TerrainConfig,
+    pub robot: RobotConfig,
+    pub task: TaskConfig,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            flat_envs: 9,
+            rough_envs: 0,
+            threads: 2,
+            physics_dt: 0.02,
+            substeps: 5,
+            terrain: TerrainConfig::default(),
+            robot: RobotConfig::default(),
+            task: TaskConfig::default(),
+        }
+    }
+}
+
+impl SimConfig {
+    pub fn num_envs(&self) -> usize {
+        self.flat_envs + self.rough_envs
+    }
+
+    /// The area of env `i`: flat envs first, then rough.
+    pub fn area_of(&self, env: usize) -> AreaKind {
+        if env < self.flat_envs {
+            AreaKind::Flat
+        } else {
+            AreaKind::Rough
+        }
+    }
+
+    /// Decision step, seconds (0.1 by default, SPEC S2).
+    pub fn decision_dt(&self) -> f64 {
+        self.physics_dt * self.substeps as f64
+    }
+}
+
+/// The lava-tube floor (SPEC S1).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct TerrainConfig {
+    /// Seed of the procedural floor (independent of the run seed, so runs can share a floor).
+    pub seed: u64,
+    /// Flat area rectangle. Default x ∈ [-2.5, 0.5], z ∈ [-1.0, 0.5] (SPEC S1).
+    pub flat_area: Rect,
+    /// Rough area rectangle. Default x ∈ [-9.0, -7.5], z ∈ [1.5, 5.0] (SPEC S1).
+    pub rough_area: Rect,
+    /// Heightfield cell size, metres. [0.005, 0.5]. Default 0.04.
+    pub cell_size: f64,
+    /// Extra floor around each area, metres, so a robot at the edge still has ground. [0.5, 10]. Default 1.0.
+    pub border: f64,
+    /// RMS height of the flat area's micro-relief, metres. [0, 0.05]. Default 0.002.
+    pub flat_relief: f64,
+    /// Wavelength of the flat micro-relief, metres. [0.01, 5]. Default 0.12.
+    pub flat_wavelength: f64,
+    /// Peak amplitude of the rough area's bumps before `roughness-scale`, metres. [0, 1]. Default 0.05.
+    pub rough_amplitude: f64,
+    /// Wavelength of the rough area's largest octave, metres. [0.02, 10]. Default 0.45.
+    pub rough_wavelength: f64,
+    /// Octaves of value noise in the rough area. 1 ..= 8. Default 4.
+    pub rough_octaves: usize,
+    /// Scale of the rough area's unevenness (SPEC S1: the paper used 80 % of the scan). [0, 2]. Default 0.8.
+    pub roughness_scale: f64,
+    /// Width of the blend between areas and the surrounding floor, metres. [0, 5]. Default 0.3.
+    pub blend: f64,
+    /// A measured heightmap to use instead of the procedural floor.
+    pub heightmap: Option<HeightmapConfig>,
+}
+
+impl Default for TerrainConfig {
+    fn default() -> Self {
+        Self {
+            seed: 2026,
+            flat_area: Rect {
+                x: [-2.5, 0.5],
+                z: [-1.0, 0.5],
+            },
+            rough_area: Rect {
+                x: [-9.0, -7.5],
+                z: [1.5, 5.0],
+            },
+            cell_size: 0.04,
+            border: 1.0,
+            flat_relief: 0.002,
+            flat_wavelength: 0.12,
+            rough_amplitude: 0.05,
+            rough_wavelength: 0.45,
+            rough_octaves: 4,
+            roughness_scale: 0.8,
+            blend: 0.3,
+            heightmap: None,
+        }
+    }
+}
+
+/// A user heightmap: a 16-bit grayscale PNG or a plain grid (`.grid` text: first line
+/// `rows cols`, then `rows` lines of `cols` heights in metres, row = +Z, column = +X).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct HeightmapConfig {
+    /// The file, relative to the config file's directory.
+    pub path: PathBuf,
+    /// Ground distance between samples, metres. (0, 1].
+    pub metres_per_pixel: f64,
+    /// Height of the brightest 16-bit value (65535), metres (PNG only). (0, 100]. Default 1.
+    #[serde(default = "one")]
+    pub height_scale: f64,
+    /// World X, Z of the map's first sample (row 0, column 0), metres.
+    pub origin: [f64; 2],
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+/// Wheel collider shape: balls are 2–3× cheaper to collide with a heightfield (DESIGN §10).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WheelShape {
+    Ball,
+    Cylinder,
+}
+
+/// The two-wheeled differential robot (SPEC S2).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct RobotConfig {
+    /// Wheel radius, metres. SPEC S2: ≈ 3–4 cm. [0.01, 0.2]. Default 0.035.
+    pub wheel_radius: f64,
+    /// Wheel width (cylinder wheels), metres. [0.002, 0.1]. Default 0.015.
+    pub wheel_width: f64,
+    /// Distance between the wheel centres, metres. [0.03, 1]. Default 0.10.
+    pub track_width: f64,
+    /// Wheel collider shape. Default `ball`.
+    pub wheel_shape: WheelShape,
+    /// Chassis box half extents (x across, y up, z along), metres. Default [0.035, 0.015, 0.05].
+    pub chassis_half_extents: [f64; 3],
+    /// Chassis mass, kg. (0, 100]. Default 0.30.
+    pub chassis_mass: f64,
+    /// Mass of each wheel, kg. (0, 10]. Default 0.03.
+    pub wheel_mass: f64,
+    /// Radius of the passive ball support (caster) at the rear, metres. [0.002, 0.1]. Default 0.012.
+    pub caster_radius: f64,
+    /// Ground friction coefficient of wheels. [0, 5]. Default 1.0.
+    pub wheel_friction: f64,
+    /// Friction of the passive support (a low-friction skid). [0, 5]. Default 0.05.
+    pub caster_friction: f64,
+    /// Wheel motor torque limit, N·m. (0, 10]. Default 0.1.
+    pub motor_max_torque: f64,
+    /// Velocity motor gain (rapier acceleration-based damping; higher tracks the command more
+    /// stiffly: 1000 reaches 98 % of the commanded speed on flat ground). (0, 10^6]. Default 1000.
+    pub motor_damping: f64,
+    /// Action clip: each wheel command in [-limit, limit] rad/s (SPEC S2). (0, 100]. Default 3.0.
+    pub action_limit: f64,
+    /// rapier's length unit, metres (a robot this small halves its step cost at ≈ 0.2). [0.01, 10]. Default 0.2.
+    pub length_unit: f64,
+}
+
+impl Default for RobotConfig {
+    fn default() -> Self {
+        Self {
+            wheel_radius: 0.035,
+            wheel_width: 0.015,
+            track_width: 0.10,
+            wheel_shape: WheelShape::Ball,
+            chassis_half_extents: [0.035, 0.015, 0.05],
+            chassis_mass: 0.30,
+            wheel_mass: 0.03,
+            caster_radius: 0.012,
+            wheel_friction: 1.0,
+            caster_friction: 0.05,
+            motor_max_torque: 0.1,
+            motor_damping: 1000.0,
+            action_limit: 3.0,
+            length_unit: 0.2,
+        }
+    }
+}
+
+/// The paper's episode and reward rules (SPEC S3–S4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct TaskConfig {
+    /// Δ, metres (SPEC S3). (0, 1]. Default 0.1.
+    pub delta: f64,
+    /// Target annulus radii in units of Δ (SPEC S3: Δ ≤ r ≤ 5Δ). Default [1, 5].
+    pub target_annulus: [f64; 2],
+    /// MES = mes-base + mes-per-metre · ID (SPEC S3). Default 300, 200.
+    pub mes_base: f64,
+    pub mes_per_metre: f64,
+    /// PED = ID + ped-slack·Δ − kΔ (SPEC S3). [0, 100]. Default 2.
+    pub ped_slack: f64,
+    /// Leaving the area by more than this ends the episode and respawns (SPEC S3, interpretation), metres. Default 0.2.
+    pub leave_margin: f64,
+    /// |roll| or |pitch| above this ends the episode and respawns (SPEC S3, interpretation), degrees. (0, 180]. Default 60.
+    pub tip_limit_deg: f64,
+    /// ProgressReward = progress-scale · PD (SPEC S4). Default 100.
+    pub progress_scale: f64,
+    /// Redraws before giving up on a target inside the area (then the area centre is used). 1 ..= 10^6. Default 1000.
+    pub max_target_draws: usize,
+}
+
+impl Default for TaskConfig {
+    fn default() -> Self {
+        Self {
+            delta: 0.1,
+            target_annulus: [1.0, 5.0],
+            mes_base: 300.0,
+            mes_per_metre: 200.0,
+            ped_slack: 2.0,
+            leave_margin: 0.2,
+            tip_limit_deg: 60.0,
+            progress_scale: 100.0,
+            max_target_draws: 1000,
+        }
+    }
+}
+
+/// PPO hyperparameters (SPEC S6, Table 2) and implementation details.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct PpoConfig {
+    /// Transitions per update, summed over envs (SPEC S6, interpretation). 64 ..= 10^6. Default 2048.
+    pub rollout_transitions: usize,
+    /// Minibatch size ("batch size" in ML-Agents). 1 ..= rollout. Default 64.
+    pub minibatch_size: usize,
+    /// Epochs per update. 1 ..= 100. Default 10.
+    pub epochs: usize,
+    /// Adam learning rate. (0, 1]. Default 3e-4.
+    pub learning_rate: f64,
+    /// Decay the learning rate linearly to 0 over `run.total-steps`. Default true.
+    pub anneal_lr: bool,
+    /// Adam epsilon. (0, 1]. Default 1e-5.
+    pub adam_eps: f64,
+    /// Discount γ. [0, 1]. Default 0.99.
+    pub gamma: f64,
+    /// GAE λ. [0, 1]. Default 0.95.
+    pub gae_lambda: f64,
+    /// Surrogate clip ε. (0, 1]. Default 0.2.
+    pub clip_coef: f64,
+    /// Clip the value loss around the old value too. Default false.
+    pub clip_vloss: bool,
+    /// Entropy coefficient. [0, 1]. Default 5e-4.
+    pub ent_coef: f64,
+    /// Value-loss coefficient. [0, 10]. Default 0.5.
+    pub vf_coef: f64,
+    /// Global gradient-norm clip. (0, 1000]. Default 0.5.
+    pub max_grad_norm: f64,
+    /// Normalise advantages per minibatch. Default true.
+    pub norm_adv: bool,
+    /// Stop an update's epochs early when approx KL exceeds this. Default none.
+    pub target_kl: Option<f64>,
+    /// Hidden layer widths of actor and critic (SPEC S6, interpretation: ML-Agents' 2 × 128).
+    pub hidden: Vec<usize>,
+    /// Orthogonal init (hidden √2, policy head 0.01, value head 1). Default true.
+    pub ortho_init: bool,
+    /// Initial log standard deviation of the action distribution. [-5, 2]. Default 0.
+    pub init_log_std: f64,
+    /// Running observation normalisation. Default true.
+    pub obs_norm: bool,
+    /// Clip of normalised observations. (0, 100]. Default 10.
+    pub obs_clip: f64,
+    /// Write a checkpoint every this many updates. 1 ..= 10^6. Default 10.
+    pub checkpoint_every: usize,
+    /// Checkpoints kept (oldest removed). 1 ..= 1000. Default 3.
+    pub keep_checkpoints: usize,
+    /// In async mode, drop transitions more than this many policy versions old. 0 ..= 1000. Default 4.
+    pub max_policy_lag: u32,
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        Self {
+            rollout_transitions: 2048,
+            minibatch_size: 64,
+            epochs: 10,
+            learning_rate: 3e-4,
+            anneal_lr: true,
+            adam_eps: 1e-5,
+            gamma: 0.99,
+            gae_lambda: 0.95,
+            clip_coef: 0.2,
+            clip_vloss: false,
+            ent_coef: 5e-4,
+            vf_coef: 0.5,
+            max_grad_norm: 0.5,
+            norm_adv: true,
+            target_kl: None,
+            hidden: vec![128, 128],
+            ortho_init: true,
+            init_log_std: 0.0,
+            obs_norm: true,
+            obs_clip: 10.0,
+            checkpoint_every: 10,
+            keep_checkpoints: 3,
+            max_policy_lag: 4,
+        }
+    }
+}
+
+impl PpoConfig {
+    /// Steps per env per rollout: enough that T × N covers `rollout-transitions`.
+    pub fn rollout_steps(&self, num_envs: usize) -> usize {
+        self.rollout_transitions.div_ceil(num_envs.max(1))
+    }
+}
+
+/// Terrain estimation (SPEC S7) and switching (SPEC S8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct EstimatorConfig {
+    /// Rolling-window sizes analysed offline, ticks (SPEC S7). Each 2 ..= 10^5. Default [10, 20, 40, 70].
+    pub windows: Vec<usize>,
+    /// Window used online, ticks. 2 ..= 10^5. Default 70 (the paper's best).
+    pub online_window: usize,
+    /// Ticks dropped at the start of each series (SPEC S7). 0 ..= 10^6. Default 100.
+    pub warmup_ticks: usize,
+    /// Mixture components (terrain classes). 2 ..= 16. Default 2.
+    pub components: usize,
+    /// EM restarts from different initialisations; the best likelihood wins. 1 ..= 100. Default 5.
+    pub restarts: usize,
+    /// EM iteration cap. 1 ..= 10^5. Default 500.
+    pub max_iter: usize,
+    /// EM stops when the mean log-likelihood improves by less than this. (0, 1]. Default 1e-8.
+    pub tol: f64,
+    /// Variance floor of each component. (0, 1]. Default 1e-10.
+    pub var_floor: f64,
+    /// Online: refit the mixture every this many ticks. 1 ..= 10^6. Default 500.
+    pub refit_every: usize,
+    /// Online: most recent window-std values kept for refitting. 10 ..= 10^7. Default 20000.
+    pub pool_size: usize,
+    /// Online: probability of staying on the same terrain per tick in the HMM filter; 0 disables the filter. [0, 1). Default 0.98.
+    pub stay_prob: f64,
+}
+
+impl Default for EstimatorConfig {
+    fn default() -> Self {
+        Self {
+            windows: vec![10, 20, 40, 70],
+            online_window: 70,
+            warmup_ticks: 100,
+            components: 2,
+            restarts: 5,
+            max_iter: 500,
+            tol: 1e-8,
+            var_floor: 1e-10,
+            refit_every: 500,
+            pool_size: 20_000,
+            stay_prob: 0.98,
+        }
+    }
+}
+
+impl Config {
+    /// Reads, parses and validates a config file.
+    pub fn load(path: &Path) -> Result<Self, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        })?;
+        let mut cfg = Self::parse(&text, path)?;
+        if let (Some(h), Some(dir)) = (cfg.sim.terrain.heightmap.as_mut(), path.parent()) {
+            h.path = dir.join(&h.path);
+        }
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// Parses TOML text (no validation); `path` only labels errors.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        toml::from_str(text).map_err(|e| {
+            let (line, column) = e.span().map(|s| line_col(text, s.start)).unwrap_or((1, 1));
+            ConfigError::Parse {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message: e.message().replace('\n', " "),
+            }
+        })
+    }
+
+    /// The config as TOML, for the run directory.
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}\n"))
+    }
+
+    /// Range and cross-field checks.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let r = &self.run;
+        if r.total_steps == 0 {
+            return Err(invalid(
+                "run.total-steps",
+                r.total_steps,
+                "must be at least 1",
+            ));
+        }
+        let s = &self.sim;
+        count_in("sim.flat-envs", s.flat_envs, 0, 1024)?;
+        count_in("sim.rough-envs", s.rough_envs, 0, 1024)?;
+        if s.num_envs() == 0 {
+            return Err(invalid(
+                "sim.flat-envs",
+                s.flat_envs,
+                "flat-envs + rough-envs must be at least 1",
+            ));
+        }
+        count_in("sim.threads", s.threads, 1, 64)?;
+        in_range("sim.physics-dt", s.physics_dt, 1e-4, 0.1)?;
+        count_in("sim.substeps", s.substeps, 1, 100)?;
+        let t = &s.terrain;
+        for (field, a) in [
+            ("sim.terrain.flat-area", t.flat_area),
+            ("sim.terrain.rough-area", t.rough_area),
+        ] {
+            if !(a.x[0] < a.x[1] && a.z[0] < a.z[1])
+                || a.x.iter().chain(&a.z).any(|v| !v.is_finite())
+            {
+                return Err(invalid(field, a, "needs finite min < max on x and z"));
+            }
+        }
+        in_range("sim.terrain.cell-size", t.cell_size, 0.005, 0.5)?;
+        in_range("sim.terrain.border", t.border, 0.5, 10.0)?;
+        in_range("sim.terrain.flat-relief", t.flat_relief, 0.0, 0.05)?;
+        in_range("sim.terrain.flat-wavelength", t.flat_wavelength, 0.01, 5.0)?;
+        in_range("sim.terrain.rough-amplitude", t.rough_amplitude, 0.0, 1.0)?;
+        in_range(
+            "sim.terrain.rough-wavelength",
+            t.rough_wavelength,
+            0.02,
+            10.0,
+        )?;
+        count_in("sim.terrain.rough-octaves", t.rough_octaves, 1, 8)?;
+        in_range("sim.terrain.roughness-scale", t.roughness_scale, 0.0, 2.0)?;
+        in_range("sim.terrain.blend", t.blend, 0.0, 5.0)?;
+        if let Some(h) = &t.heightmap {
+            in_range(
+                "sim.terrain.heightmap.metres-per-pixel",
+                h.metres_per_pixel,
+                1e-4,
+                1.0,
+            )?;
+            in_range(
+                "sim.terrain.heightmap.height-scale",
+                h.height_scale,
+                1e-6,
+                100.0,
+            )?;
+            if !h.path.exists() {
+                return Err(invalid(
+                    "sim.terrain.heightmap.path",
+                    &h.path,
+                    "file not found",
+                ));
+            }
+        }
+        let b = &s.robot;
+        in_range("sim.robot.wheel-radius", b.wheel_radius, 0.01, 0.2)?;
+        in_range("sim.robot.wheel-width", b.wheel_width, 0.002, 0.1)?;
+        in_range("sim.robot.track-width", b.track_width, 0.03, 1.0)?;
+        for v in b.chassis_half_extents {
+            in_range("sim.robot.chassis-half-extents", v, 0.001, 1.0)?;
+        }
+        in_range("sim.robot.chassis-mass", b.chassis_mass, 1e-4, 100.0)?;
+        in_range("sim.robot.wheel-mass", b.wheel_mass, 1e-4, 10.0)?;
+        in_range("sim.robot.caster-radius", b.caster_radius, 0.002, 0.1)?;
+        in_range("sim.robot.wheel-friction", b.wheel_friction, 0.0, 5.0)?;
+        in_range("sim.robot.caster-friction", b.caster_friction, 0.0, 5.0)?;
+        in_range("sim.robot.motor-max-torque", b.motor_max_torque, 1e-6, 10.0)?;
+        in_range("sim.robot.motor-damping", b.motor_damping, 1e-6, 1e6)?;
+        in_range("sim.robot.action-limit", b.action_limit, 1e-6, 100.0)?;
+        in_range("sim.robot.length-unit", b.length_unit, 0.01, 10.0)?;
+        if b.caster_radius >= b.wheel_radius {
+            return Err(invalid(
+                "sim.robot.caster-radius",
+                b.caster_radius,
+                "must be smaller than wheel-radius",
+            ));
+        }
+        let k = &s.task;
+        in_range("sim.task.delta", k.delta, 1e-3, 1.0)?;
+        let [lo, hi] = k.target_annulus;
+        if !(lo.is_finite() && hi.is_finite() && 0.0 < lo && lo <= hi && hi <= 50.0) {
+            return Err(invalid(
+                "sim.task.target-annulus",
+                k.target_annulus,
+                "needs 0 < min <= max <= 50",
+            ));
+        }
+        in_range("sim.task.mes-base", k.mes_base, 1.0, 1e6)?;
+        in_range("sim.task.mes-per-metre", k.mes_per_metre, 0.0, 1e6)?;
+        in_range("sim.task.ped-slack", k.ped_slack, 0.0, 100.0)?;
+        in_range("sim.task.leave-margin", k.leave_margin, 0.0, 100.0)?;
+        in_range("sim.task.tip-limit-deg", k.tip_limit_deg, 1.0, 180.0)?;
+        in_range("sim.task.progress-scale", k.progress_scale, 0.0, 1e6)?;
+        count_in(
+            "sim.task.max-target-draws",
+            k.max_target_draws,
+            1,
+            1_000_000,
+        )?;
+        let p = &self.ppo;
+        count_in(
+            "ppo.rollout-transitions",
+            p.rollout_transitions,
+            64,
+            1_000_000,
+        )?;
+        let batch = p.rollout_steps(s.num_envs()) * s.num_envs();
+        count_in("ppo.minibatch-size", p.minibatch_size, 1, batch)?;
+        count_in("ppo.epochs", p.epochs, 1, 100)?;
+        in_range("ppo.learning-rate", p.learning_rate, 1e-12, 1.0)?;
+        in_range("ppo.adam-eps", p.adam_eps, 1e-12, 1.0)?;
+        in_range("ppo.gamma", p.gamma, 0.0, 1.0)?;
+        in_range("ppo.gae-lambda", p.gae_lambda, 0.0, 1.0)?;
+        in_range("ppo.clip-coef", p.clip_coef, 1e-6, 1.0)?;
+        in_range("ppo.ent-coef", p.ent_coef, 0.0, 1.0)?;
+        in_range("ppo.vf-coef", p.vf_coef, 0.0, 10.0)?;
+        in_range("ppo.max-grad-norm", p.max_grad_norm, 1e-6, 1000.0)?;
+        if let Some(kl) = p.target_kl {
+            in_range("ppo.target-kl", kl, 1e-9, 10.0)?;
+        }
+        if p.hidden.is_empty() || p.hidden.len() > crate::policy::MAX_HIDDEN {
+            return Err(invalid(
+                "ppo.hidden",
+                &p.hidden,
+                format!("needs 1 ..= {} layers", crate::policy::MAX_HIDDEN),
+            ));
+        }
+        for &h in &p.hidden {
+            count_in("ppo.hidden", h, 1, 4096)?;
+        }
+        in_range("ppo.init-log-std", p.init_log_std, -5.0, 2.0)?;
+        in_range("ppo.obs-clip", p.obs_clip, 1e-3, 100.0)?;
+        count_in("ppo.checkpoint-every", p.checkpoint_every, 1, 1_000_000)?;
+        count_in("ppo.keep-checkpoints", p.keep_checkpoints, 1, 1000)?;
+        count_in("ppo.max-policy-lag", p.max_policy_lag as usize, 0, 1000)?;
+        let e = &self.estimator;
+        if e.windows.is_empty() {
+            return Err(invalid(
+                "estimator.windows",
+                &e.windows,
+                "needs at least one window",
+            ));
+        }
+        for &w in &e.windows {
+            count_in("estimator.windows", w, 2, 100_000)?;
+        }
+        count_in("estimator.online-window", e.online_window, 2, 100_000)?;
+        count_in("estimator.warmup-ticks", e.warmup_ticks, 0, 1_000_000)?;
+        count_in("estimator.components", e.components, 2, 16)?;
+        count_in("estimator.restarts", e.restarts, 1, 100)?;
+        count_in("estimator.max-iter", e.max_iter, 1, 100_000)?;
+        in_range("estimator.tol", e.tol, 1e-15, 1.0)?;
+        in_range("estimator.var-floor", e.var_floor, 1e-15, 1.0)?;
+        count_in("estimator.refit-every", e.refit_every, 1, 1_000_000)?;
+        count_in("estimator.pool-size", e.pool_size, 10, 10_000_000)?;
+        if !(e.stay_prob.is_finite() && (0.0..1.0).contains(&e.stay_prob)) {
+            return Err(invalid(
+                "estimator.stay-prob",
+                e.stay_prob,
+                "must be in [0, 1)",
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// 1-based line and column of a byte offset.
+fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+    (line, column)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse(text: &str) -> Result<Config, ConfigError> {
+        let c = Config::parse(text, Path::new("t.toml"))?;
+        c.validate()?;
+        Ok(c)
+    }
+
+    #[test]
+    fn defaults_are_valid_and_round_trip() {
+        let c = Config::default();
+        c.validate().expect("default config valid");
+        let back = parse(&c.to_toml()).expect("round trip");
+        assert_eq!(back, c);
+        assert!((c.sim.decision_dt() - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn unknown_key_names_its_line() {
+        let e = parse("[sim]\nflat-envs = 2\nwheel = 3\n").expect_err("unknown");
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with("t.toml:3:1: unknown field `wheel`"),
+            "{msg}"
+        );
+        assert!(!msg.contains('\n'));
+    }
+
+    #[test]
+    fn out_of_range_names_the_field() {
+        let e = parse("[sim.robot]\nwheel-radius = 2.0\n").expect_err("range");
+        assert_eq!(
+            e.to_string(),
+            "config field `sim.robot.wheel-radius` = 2.0: must be in [0.01, 0.2]"
+        );
+        let e = parse("[sim]\nflat-envs = 0\n").expect_err("no envs");
+        assert!(e.to_string().contains("sim.flat-envs"));
+    }
+
+    #[test]
+    fn rollout_steps_cover_the_batch() {
+        let p = PpoConfig::default();
+        assert_eq!(p.rollout_steps(8), 256);
+        assert_eq!(p.rollout_steps(9), 228); // 228 × 9 = 2052 ≥ 2048
+    }
+
+    #[test]
+    fn areas_are_assigned_flat_first() {
+        let s = SimConfig {
+            flat_envs: 2,
+            rough_envs: 1,
+            ..SimConfig::default()
+        };
+        assert_eq!(
+            (0..3).map(|i| s.area_of(i)).collect::<Vec<_>>(),
+            vec![AreaKind::Flat, AreaKind::Flat, AreaKind::Rough]
+        );
+    }
+}

@@ -1,0 +1,22 @@
+//! The lavatube contract shared by every process: the configuration tree, the policy
+//! network's flat weight layout with a plain-Rust forward pass, rollout transitions,
+//! telemetry rows and a checkpointable RNG.
+//!
+//! Depends on neither rapier nor burn, so every process can link it cheaply.
+
+pub mod config;
+pub mod policy;
+pub mod rng;
+pub mod rollout;
+pub mod telemetry;
+
+pub use config::{AreaKind, Config, ConfigError};
+pub use policy::{Policy, PolicyLayout};
+pub use rng::Rng;
+pub use rollout::Transition;
+pub use telemetry::TelemetryRow;
+
+/// Observation size (SPEC S5).
+pub const OBS_DIM: usize = 10;
+/// Action size: left and right wheel commands (SPEC S2).
+pub const ACT_DIM: usize = 2;
