@@ -216,15 +216,17 @@ pub struct TerrainConfig {
     pub cell_size: f64,
     /// Extra floor around each area, metres, so a robot at the edge still has ground. [0.5, 10]. Default 1.0.
     pub border: f64,
-    /// RMS height of the flat area's micro-relief, metres. [0, 0.05]. Default 0.002.
+    /// Peak height of the micro-relief everywhere (RMS ≈ ⅓ of it), metres. [0, 0.05]. Default 0.007
+    /// (calibrated so go-to-target driving gives SPEC S1's flat rolling std of sin θx).
     pub flat_relief: f64,
-    /// Wavelength of the flat micro-relief, metres. [0.01, 5]. Default 0.12.
+    /// Wavelength of the micro-relief, metres. [0.01, 5]. Default 0.15.
     pub flat_wavelength: f64,
-    /// Peak amplitude of the rough area's bumps before `roughness-scale`, metres. [0, 1]. Default 0.05.
+    /// Peak amplitude of the rough area's bumps before `roughness-scale`, metres. [0, 1]. Default 0.07
+    /// (calibrated to SPEC S1's rough rolling std).
     pub rough_amplitude: f64,
-    /// Wavelength of the rough area's largest octave, metres. [0.02, 10]. Default 0.45.
+    /// Wavelength of the rough area's largest octave, metres. [0.02, 10]. Default 0.4.
     pub rough_wavelength: f64,
-    /// Octaves of value noise in the rough area. 1 ..= 8. Default 4.
+    /// Octaves of value noise in the rough area. 1 ..= 8. Default 5.
     pub rough_octaves: usize,
     /// Scale of the rough area's unevenness (SPEC S1: the paper used 80 % of the scan). [0, 2]. Default 0.8.
     pub roughness_scale: f64,
@@ -248,11 +250,11 @@ impl Default for TerrainConfig {
             },
             cell_size: 0.04,
             border: 1.0,
-            flat_relief: 0.002,
-            flat_wavelength: 0.12,
-            rough_amplitude: 0.05,
-            rough_wavelength: 0.45,
-            rough_octaves: 4,
+            flat_relief: 0.007,
+            flat_wavelength: 0.15,
+            rough_amplitude: 0.07,
+            rough_wavelength: 0.4,
+            rough_octaves: 5,
             roughness_scale: 0.8,
             blend: 0.3,
             heightmap: None,

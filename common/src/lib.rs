@@ -5,10 +5,12 @@
 //! Depends on neither rapier nor burn, so every process can link it cheaply.
 
 pub mod config;
+pub mod ipc;
 pub mod policy;
 pub mod rng;
 pub mod rollout;
 pub mod telemetry;
+pub mod wire;
 
 pub use config::{AreaKind, Config, ConfigError};
 pub use policy::{Policy, PolicyLayout};

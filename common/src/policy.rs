@@ -352,8 +352,9 @@ mod tests {
         let mut out = [0.0];
         p.mean_action(&[3.0, 1.0], &mut out);
         // z = ((3-1)/2, (1-2)/1) = (1, -1)
-        let h0 = (1.0f32 * 0.5 + -1.0 * 0.25 + 0.1).tanh();
-        let h1 = (1.0f32 * -1.0 + -1.0 * 2.0 - 0.2).tanh();
+        // z0·W[0][0] + z1·W[1][0] + b0 and z0·W[0][1] + z1·W[1][1] + b1, with z = (1, −1).
+        let h0 = (0.5f32 - 0.25 + 0.1).tanh();
+        let h1 = (-1.0f32 - 2.0 - 0.2).tanh();
         assert!((out[0] - (h0 - h1 + 0.3)).abs() < 1e-6);
         assert_eq!(p.log_std(), &[-0.5]);
     }

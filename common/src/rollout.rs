@@ -28,10 +28,15 @@ pub struct Transition {
     pub terminated: u8,
     /// 1 when the episode was cut (time limit, fault) after this step.
     pub truncated: u8,
+    /// 1 when the episode ended by reaching its target after this step.
+    pub success: u8,
     /// True area code of the env (0 flat, 1 rough).
     pub area: u8,
     /// Terrain class the estimator assigned at this step (255: none yet).
     pub estimated_class: u8,
+    /// Policy slot that acted (0 general, 1 flat, 2 rough).
+    pub slot: u8,
+    pub _reserved: [u8; 2],
 }
 
 impl Default for Transition {
@@ -46,8 +51,11 @@ impl Default for Transition {
             env: 0,
             terminated: 0,
             truncated: 0,
+            success: 0,
             area: 0,
             estimated_class: u8::MAX,
+            slot: 0,
+            _reserved: [0; 2],
         }
     }
 }
@@ -60,13 +68,15 @@ mod tests {
     #[test]
     fn transition_layout_is_pinned() {
         let msg = "layout changed: bump the version in the type name";
-        assert_eq!(size_of::<Transition>(), 108, "{msg}");
+        assert_eq!(size_of::<Transition>(), 112, "{msg}");
         assert_eq!(align_of::<Transition>(), 4, "{msg}");
         assert_eq!(offset_of!(Transition, action), 40, "{msg}");
         assert_eq!(offset_of!(Transition, final_obs), 48, "{msg}");
         assert_eq!(offset_of!(Transition, logprob), 88, "{msg}");
         assert_eq!(offset_of!(Transition, policy_version), 96, "{msg}");
         assert_eq!(offset_of!(Transition, terminated), 104, "{msg}");
-        assert_eq!(offset_of!(Transition, estimated_class), 107, "{msg}");
+        assert_eq!(offset_of!(Transition, area), 107, "{msg}");
+        assert_eq!(offset_of!(Transition, estimated_class), 108, "{msg}");
+        assert_eq!(offset_of!(Transition, slot), 109, "{msg}");
     }
 }

@@ -1,0 +1,411 @@
+//! iceoryx2 plumbing shared by every process: one node per process with a per-run config,
+//! the run's service names (`lavatube/<run>/<service>`), and typed slice channels, each a
+//! publish-subscribe service paired with an event service so readers sleep until data comes.
+//!
+//! Ports of the `ipc` service type hold an `Rc`: keep all of a process's ports on one thread.
+
+use iceoryx2::port::listener::Listener;
+use iceoryx2::port::notifier::Notifier;
+use iceoryx2::port::publisher::Publisher;
+use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::prelude::*;
+use iceoryx2::sample::Sample;
+use std::fmt::Debug;
+use std::time::Duration;
+
+pub type Svc = ipc::Service;
+
+/// An iceoryx2 operation failed; says which and why.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("shared memory: {what}: {reason}")]
+pub struct IpcError {
+    pub what: String,
+    pub reason: String,
+}
+
+fn ipc_err(what: impl Into<String>) -> impl FnOnce(&dyn Debug) -> IpcError {
+    let what = what.into();
+    move |e| IpcError {
+        what,
+        reason: format!("{e:?}"),
+    }
+}
+
+/// Checks a run id: 1–32 characters of `[A-Za-z0-9_-]` (it becomes part of file names).
+pub fn validate_run_id(run: &str) -> Result<(), String> {
+    let ok = !run.is_empty()
+        && run.len() <= 32
+        && run
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_');
+    if ok {
+        Ok(())
+    } else {
+        Err(format!(
+            "run id `{run}` must be 1–32 characters of A-Z a-z 0-9 _ -"
+        ))
+    }
+}
+
+/// The file-name prefix of every shared-memory resource of run `run`, so one run's resources
+/// are easy to find, list and remove, and two runs never collide.
+pub fn resource_prefix(run: &str) -> String {
+    format!("lavatube_{run}_")
+}
+
+/// The iceoryx2 config of a run, set in code (the config file is otherwise searched relative
+/// to the current directory).
+pub fn run_config(run: &str) -> Result<iceoryx2::config::Config, IpcError> {
+    let mut cfg = iceoryx2::config::Config::default();
+    cfg.global.prefix = resource_prefix(run)
+        .as_str()
+        .try_into()
+        .map_err(|e| ipc_err("run prefix")(&e))?;
+    Ok(cfg)
+}
+
+/// How a slice channel is set up. Every process opening a service uses the same spec.
+#[derive(Debug, Clone, Copy)]
+pub struct ChannelSpec {
+    pub service: &'static str,
+    /// Samples a subscriber buffers; the oldest is overwritten when full.
+    pub buffer: usize,
+    /// Samples a late subscriber receives on connecting.
+    pub history: usize,
+    pub publishers: usize,
+    pub subscribers: usize,
+}
+
+/// sim → learner: T × N transitions plus N bootstrap observations.
+pub const ROLLOUT: ChannelSpec = ChannelSpec {
+    service: "rollout",
+    buffer: 8,
+    history: 0,
+    publishers: 2,
+    subscribers: 8,
+};
+/// learner → sim: the latest weights of one slot (history 1: a late subscriber gets them).
+pub const POLICY: ChannelSpec = ChannelSpec {
+    service: "policy",
+    buffer: 2,
+    history: 1,
+    publishers: 2,
+    subscribers: 8,
+};
+/// sim → estimator, recorders, monitors: one tick of every env.
+pub const TELEMETRY: ChannelSpec = ChannelSpec {
+    service: "telemetry",
+    buffer: 64,
+    history: 0,
+    publishers: 2,
+    subscribers: 8,
+};
+/// estimator → sim, monitors: per-env terrain class.
+pub const TERRAIN: ChannelSpec = ChannelSpec {
+    service: "terrain",
+    buffer: 4,
+    history: 1,
+    publishers: 2,
+    subscribers: 8,
+};
+
+/// Control event ids (launcher → every process).
+pub const CONTROL_SHUTDOWN: usize = 1;
+
+/// One process's connection to a run's services.
+pub struct Bus {
+    node: Node<Svc>,
+    run: String,
+}
+
+impl Bus {
+    /// Creates this process's node in run `run`; `who` names the node (`sim`, `learner`, …).
+    pub fn connect(run: &str, who: &str) -> Result<Self, IpcError> {
+        validate_run_id(run).map_err(|reason| IpcError {
+            what: "run id".into(),
+            reason,
+        })?;
+        let cfg = run_config(run)?;
+        let name: NodeName = who.try_into().map_err(|e| ipc_err("node name")(&e))?;
+        let node = NodeBuilder::new()
+            .name(&name)
+            .config(&cfg)
+            .signal_handling_mode(SignalHandlingMode::HandleTerminationRequests)
+            .create::<Svc>()
+            .map_err(|e| ipc_err(format!("create node `{who}`"))(&e))?;
+        // A process killed with SIGKILL leaves its node behind; whoever starts next cleans up.
+        node.try_cleanup_dead_nodes();
+        Ok(Self {
+            node,
+            run: run.to_string(),
+        })
+    }
+
+    pub fn node(&self) -> &Node<Svc> {
+        &self.node
+    }
+
+    pub fn run(&self) -> &str {
+        &self.run
+    }
+
+    /// `lavatube/<run>/<service>[/<sub>]`.
+    pub fn service_name(&self, service: &str, sub: Option<&str>) -> Result<ServiceName, IpcError> {
+        let s = match sub {
+            Some(sub) => format!("lavatube/{}/{service}/{sub}", self.run),
+            None => format!("lavatube/{}/{service}", self.run),
+        };
+        s.as_str()
+            .try_into()
+            .map_err(|e| ipc_err(format!("service name `{s}`"))(&e))
+    }
+
+    fn event(
+        &self,
+        name: &ServiceName,
+    ) -> Result<iceoryx2::service::port_factory::event::PortFactory<Svc>, IpcError> {
+        let ready = format!("{name}.ready");
+        let ready: ServiceName = ready
+            .as_str()
+            .try_into()
+            .map_err(|e| ipc_err("event name")(&e))?;
+        self.node
+            .service_builder(&ready)
+            .event()
+            .max_notifiers(8)
+            .max_listeners(16)
+            .open_or_create()
+            .map_err(|e| ipc_err(format!("open event `{ready}`"))(&e))
+    }
+
+    fn pubsub<T, H>(
+        &self,
+        spec: &ChannelSpec,
+        name: &ServiceName,
+    ) -> Result<
+        iceoryx2::service::port_factory::publish_subscribe::PortFactory<Svc, [T], H>,
+        IpcError,
+    >
+    where
+        T: Debug + Copy + ZeroCopySend + 'static,
+        H: Debug + Copy + Default + ZeroCopySend + 'static,
+    {
+        self.node
+            .service_builder(name)
+            .publish_subscribe::<[T]>()
+            .user_header::<H>()
+            .enable_safe_overflow(true)
+            .subscriber_max_buffer_size(spec.buffer)
+            .history_size(spec.history)
+            .max_publishers(spec.publishers)
+            .max_subscribers(spec.subscribers)
+            .max_nodes(32)
+            .open_or_create()
+            .map_err(|e| ipc_err(format!("open service `{name}`"))(&e))
+    }
+
+    /// A publisher on `spec`'s service (`sub` picks e.g. a policy slot).
+    pub fn sender<T, H>(
+        &self,
+        spec: &ChannelSpec,
+        sub: Option<&str>,
+        max_len: usize,
+    ) -> Result<Sender<T, H>, IpcError>
+    where
+        T: Debug + Copy + Default + ZeroCopySend + 'static,
+        H: Debug + Copy + Default + ZeroCopySend + 'static,
+    {
+        let name = self.service_name(spec.service, sub)?;
+        let publisher = self
+            .pubsub::<T, H>(spec, &name)?
+            .publisher_builder()
+            .initial_max_slice_len(max_len.max(1))
+            .allocation_strategy(AllocationStrategy::PowerOfTwo)
+            .create()
+            .map_err(|e| ipc_err(format!("publisher on `{name}`"))(&e))?;
+        let notifier = self
+            .event(&name)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| ipc_err(format!("notifier on `{name}`"))(&e))?;
+        Ok(Sender {
+            publisher,
+            notifier,
+            name: name.to_string(),
+        })
+    }
+
+    /// A subscriber on `spec`'s service.
+    pub fn receiver<T, H>(
+        &self,
+        spec: &ChannelSpec,
+        sub: Option<&str>,
+    ) -> Result<Receiver<T, H>, IpcError>
+    where
+        T: Debug + Copy + ZeroCopySend + 'static,
+        H: Debug + Copy + Default + ZeroCopySend + 'static,
+    {
+        let name = self.service_name(spec.service, sub)?;
+        let subscriber = self
+            .pubsub::<T, H>(spec, &name)?
+            .subscriber_builder()
+            .create()
+            .map_err(|e| ipc_err(format!("subscriber on `{name}`"))(&e))?;
+        let listener = self
+            .event(&name)?
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc_err(format!("listener on `{name}`"))(&e))?;
+        Ok(Receiver {
+            subscriber,
+            listener,
+            name: name.to_string(),
+        })
+    }
+
+    /// The launcher's side of the control channel.
+    pub fn control_notifier(&self) -> Result<Notifier<Svc>, IpcError> {
+        let name = self.service_name("control", None)?;
+        self.event(&name)?
+            .notifier_builder()
+            .create()
+            .map_err(|e| ipc_err("control notifier")(&e))
+    }
+
+    /// A process's side of the control channel.
+    pub fn control_listener(&self) -> Result<Listener<Svc>, IpcError> {
+        let name = self.service_name("control", None)?;
+        self.event(&name)?
+            .listener_builder()
+            .create()
+            .map_err(|e| ipc_err("control listener")(&e))
+    }
+}
+
+/// Publishing side of a slice channel.
+pub struct Sender<
+    T: Debug + Copy + ZeroCopySend + 'static,
+    H: Debug + Copy + ZeroCopySend + 'static,
+> {
+    publisher: Publisher<Svc, [T], H>,
+    notifier: Notifier<Svc>,
+    name: String,
+}
+
+impl<T, H> Sender<T, H>
+where
+    T: Debug + Copy + Default + ZeroCopySend + 'static,
+    H: Debug + Copy + Default + ZeroCopySend + 'static,
+{
+    /// Copies `data` into a loaned shared-memory sample, sends it and wakes the readers.
+    pub fn send(&self, header: H, data: &[T]) -> Result<(), IpcError> {
+        let mut sample = self
+            .publisher
+            .loan_slice_uninit(data.len())
+            .map_err(|e| ipc_err(format!("loan on `{}`", self.name))(&e))?;
+        *sample.user_header_mut() = header;
+        let sample = sample.write_from_slice(data);
+        sample
+            .send()
+            .map_err(|e| ipc_err(format!("send on `{}`", self.name))(&e))?;
+        self.notifier
+            .notify()
+            .map_err(|e| ipc_err(format!("notify on `{}`", self.name))(&e))?;
+        Ok(())
+    }
+}
+
+/// Receiving side of a slice channel.
+pub struct Receiver<
+    T: Debug + Copy + ZeroCopySend + 'static,
+    H: Debug + Copy + ZeroCopySend + 'static,
+> {
+    subscriber: Subscriber<Svc, [T], H>,
+    listener: Listener<Svc>,
+    name: String,
+}
+
+/// A received sample: header and slice, read in place from shared memory.
+pub type Received<T, H> = Sample<Svc, [T], H>;
+
+impl<T: Debug + Copy + ZeroCopySend + 'static, H: Debug + Copy + ZeroCopySend + 'static>
+    Receiver<T, H>
+{
+    /// The next buffered sample, if any (never blocks).
+    pub fn try_recv(&self) -> Result<Option<Received<T, H>>, IpcError> {
+        self.subscriber
+            .receive()
+            .map_err(|e| ipc_err(format!("receive on `{}`", self.name))(&e))
+    }
+
+    /// The newest buffered sample, dropping older ones.
+    pub fn latest(&self) -> Result<Option<Received<T, H>>, IpcError> {
+        let mut last = None;
+        while let Some(s) = self.try_recv()? {
+            last = Some(s);
+        }
+        Ok(last)
+    }
+
+    /// The event listener, to attach to a [`WaitSet`].
+    pub fn listener(&self) -> &Listener<Svc> {
+        &self.listener
+    }
+
+    /// Sleeps until a writer signals or `timeout` passes; consumes the pending signals.
+    pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
+        self.listener
+            .timed_wait(|_| {}, timeout)
+            .map(|_| ())
+            .map_err(|e| ipc_err(format!("wait on `{}`", self.name))(&e))
+    }
+}
+
+/// Whether a shutdown was requested on the control listener (drains it).
+pub fn shutdown_requested(control: &Listener<Svc>) -> bool {
+    let mut stop = false;
+    let _ = control.try_wait(|id| stop |= id.id.as_value() == CONTROL_SHUTDOWN);
+    stop
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn run_ids_are_checked() {
+        assert!(validate_run_id("run-1_a").is_ok());
+        assert!(validate_run_id("").is_err());
+        assert!(validate_run_id("a/b").is_err());
+        assert!(validate_run_id(&"x".repeat(33)).is_err());
+    }
+
+    #[test]
+    fn a_slice_with_its_header_crosses_a_channel() {
+        let run = format!("t{}", std::process::id());
+        let bus = Bus::connect(&run, "test").expect("node");
+        let rx: Receiver<u32, crate::wire::TickHeader> =
+            bus.receiver(&TELEMETRY, None).expect("receiver");
+        let tx: Sender<u32, crate::wire::TickHeader> =
+            bus.sender(&TELEMETRY, None, 4).expect("sender");
+        let header = crate::wire::TickHeader {
+            tick: 7,
+            envs: 3,
+            ..Default::default()
+        };
+        tx.send(header, &[1, 2, 3]).expect("send");
+        rx.wait(Duration::from_secs(1)).expect("wait");
+        let s = rx.try_recv().expect("receive").expect("a sample");
+        assert_eq!((s.user_header().tick, s.payload()), (7, &[1u32, 2, 3][..]));
+        // Longer than the initial max: the publisher grows its segment.
+        tx.send(header, &[9; 100]).expect("send grown");
+        assert_eq!(
+            rx.latest()
+                .expect("receive")
+                .expect("a sample")
+                .payload()
+                .len(),
+            100
+        );
+    }
+}

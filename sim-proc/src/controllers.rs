@@ -1,0 +1,172 @@
+//! Controllers that drive envs without a learner: random, go-to-target, and a policy given
+//! as a flat weight vector (evaluated by `common`'s plain-Rust forward; no burn here).
+//! All act from the SPEC S5 observation alone.
+
+use common::{ACT_DIM, OBS_DIM, Policy, Rng};
+
+/// Picks one env's wheel commands from its observation.
+pub trait Controller: Send {
+    fn act(&mut self, env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM];
+}
+
+/// Uniform random wheel commands, each held for `hold` ticks (so the robot actually goes
+/// somewhere rather than jittering in place).
+pub struct RandomController {
+    limit: f32,
+    hold: u32,
+    rng: Rng,
+    held: Vec<([f32; ACT_DIM], u32)>,
+}
+
+impl RandomController {
+    pub fn new(limit: f64, hold: u32, seed: u64) -> Self {
+        Self {
+            limit: limit as f32,
+            hold: hold.max(1),
+            rng: Rng::derive(seed, 0x5EED),
+            held: Vec::new(),
+        }
+    }
+}
+
+impl Controller for RandomController {
+    fn act(&mut self, env: usize, _obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
+        if self.held.len() <= env {
+            self.held.resize(env + 1, ([0.0; ACT_DIM], 0));
+        }
+        let (cmd, left) = &mut self.held[env];
+        if *left == 0 {
+            let l = self.limit as f64;
+            *cmd = [self.rng.range(-l, l) as f32, self.rng.range(-l, l) as f32];
+            *left = self.hold;
+        }
+        *left -= 1;
+        *cmd
+    }
+}
+
+/// Proportional steering toward the target: full speed ahead, scaled down while the heading
+/// error is large; the difference between the wheels is proportional to the error.
+pub struct GoToController {
+    pub limit: f32,
+    /// rad/s of wheel-speed difference per radian of heading error.
+    pub gain: f32,
+}
+
+impl GoToController {
+    pub fn new(limit: f64) -> Self {
+        Self {
+            limit: limit as f32,
+            gain: 4.0,
+        }
+    }
+}
+
+impl Controller for GoToController {
+    fn act(&mut self, _env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
+        // Body frame: +X is the robot's left, +Z its front (obs[0], obs[2]).
+        let heading_error = obs[0].atan2(obs[2]);
+        let forward = self.limit * heading_error.cos().max(0.0);
+        let turn = (self.gain * heading_error).clamp(-self.limit, self.limit);
+        [
+            (forward - turn).clamp(-self.limit, self.limit),
+            (forward + turn).clamp(-self.limit, self.limit),
+        ]
+    }
+}
+
+/// Diagonal Gaussian log-density of `action` with mean `mean` and log-std `log_std`.
+pub fn gaussian_log_prob(action: &[f32], mean: &[f32], log_std: &[f32]) -> f32 {
+    let half_log_2pi = 0.5 * (std::f32::consts::TAU).ln();
+    action
+        .iter()
+        .zip(mean)
+        .zip(log_std)
+        .map(|((a, m), s)| {
+            let z = (a - m) / s.exp();
+            -0.5 * z * z - s - half_log_2pi
+        })
+        .sum()
+}
+
+/// A policy network: its mean action (deterministic), or a sample from its Gaussian.
+pub struct PolicyController {
+    pub policy: Policy,
+    /// Sample from the policy's Gaussian rather than act with its mean.
+    pub stochastic: bool,
+    rng: Rng,
+}
+
+impl PolicyController {
+    pub fn new(policy: Policy, stochastic: bool, seed: u64) -> Self {
+        Self {
+            policy,
+            stochastic,
+            rng: Rng::derive(seed, 0xAC7),
+        }
+    }
+
+    /// The unclipped action and its log-probability under the policy (the sim clips it).
+    pub fn sample(&mut self, obs: &[f32; OBS_DIM]) -> ([f32; ACT_DIM], f32) {
+        let mut mean = [0.0; ACT_DIM];
+        self.policy.mean_action(obs, &mut mean);
+        let log_std = self.policy.log_std();
+        let mut action = mean;
+        if self.stochastic {
+            for (a, s) in action.iter_mut().zip(log_std) {
+                *a += s.exp() * self.rng.normal() as f32;
+            }
+        }
+        let lp = gaussian_log_prob(&action, &mean, log_std);
+        (action, lp)
+    }
+}
+
+impl Controller for PolicyController {
+    fn act(&mut self, _env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
+        self.sample(obs).0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn goto_steers_toward_the_target() {
+        let mut c = GoToController::new(3.0);
+        let mut obs = [0.0; OBS_DIM];
+        obs[2] = 0.3; // straight ahead
+        assert_eq!(c.act(0, &obs), [3.0, 3.0]);
+        obs[0] = 0.3; // 45° to the left: right wheel faster
+        let [l, r] = c.act(0, &obs);
+        assert!(r > l, "{l} {r}");
+        obs[2] = -0.3; // behind: turn in place, no forward drive
+        let [l, r] = c.act(0, &obs);
+        assert!((l + r).abs() < 1e-6 && r > 0.0);
+    }
+
+    #[test]
+    fn random_commands_are_held_and_bounded() {
+        let mut c = RandomController::new(3.0, 5, 1);
+        let obs = [0.0; OBS_DIM];
+        let first = c.act(0, &obs);
+        for _ in 0..4 {
+            assert_eq!(c.act(0, &obs), first);
+        }
+        let next = c.act(0, &obs);
+        assert_ne!(next, first);
+        assert!(next.iter().all(|a| a.abs() <= 3.0));
+    }
+
+    #[test]
+    fn gaussian_log_prob_matches_hand_values() {
+        // N(0, 1) at 0: −½·ln(2π) = −0.918939; two dims: −1.837877.
+        assert!(
+            (gaussian_log_prob(&[0.0, 0.0], &[0.0, 0.0], &[0.0, 0.0]) + 1.837_877).abs() < 1e-5
+        );
+        // σ = e^0.5 at z = 1: −½ − 0.5 − 0.918939.
+        let lp = gaussian_log_prob(&[1.0f32.mul_add(0.5f32.exp(), 0.0)], &[0.0], &[0.5]);
+        assert!((lp + 1.918_939).abs() < 1e-5, "{lp}");
+    }
+}

@@ -1,0 +1,289 @@
+//! One environment: a rapier world holding the shared terrain and one robot, the paper's
+//! episode bookkeeping, and the observation (SPEC S3–S5).
+
+use crate::robot::{self, Robot, TERRAIN_GROUP};
+use crate::task::{self, Ending, Episode};
+use crate::terrain::Terrain;
+use common::config::{AreaKind, Rect, SimConfig};
+use common::{OBS_DIM, Rng};
+use glam::{EulerRot, Quat, Vec3};
+use rapier3d::prelude::*;
+use std::sync::Arc;
+
+/// Height above the ground at which a robot is dropped when (re)spawned, metres.
+const SPAWN_CLEARANCE: f64 = 0.003;
+
+/// The terrain and its collider, built once and shared by every env.
+#[derive(Clone)]
+pub struct SharedTerrain {
+    pub terrain: Arc<Terrain>,
+    shape: SharedShape,
+    centre: [f64; 3],
+}
+
+impl SharedTerrain {
+    pub fn new(terrain: Terrain) -> Self {
+        let (shape, centre) = terrain.shape();
+        Self {
+            terrain: Arc::new(terrain),
+            shape,
+            centre,
+        }
+    }
+}
+
+/// Unity-convention Euler angles (SPEC S2): `q = Ry·Rx·Rz`, returned as (θx, θy, θz).
+pub fn unity_euler(q: Quat) -> [f64; 3] {
+    let (y, x, z) = q.to_euler(EulerRot::YXZ);
+    [x as f64, y as f64, z as f64]
+}
+
+/// Pose of the chassis as the task sees it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PoseState {
+    pub pos: [f64; 3],
+    pub rot: Quat,
+    /// (θx, θy, θz), radians.
+    pub euler: [f64; 3],
+}
+
+impl PoseState {
+    pub fn ground(&self) -> [f64; 2] {
+        [self.pos[0], self.pos[2]]
+    }
+
+    pub fn is_finite(&self) -> bool {
+        self.pos.iter().all(|v| v.is_finite()) && self.rot.is_finite()
+    }
+}
+
+/// What one decision step of one env produced.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct StepInfo {
+    pub reward: f64,
+    pub ending: Option<Ending>,
+    /// The observation of the state the episode ended in (before a new target was drawn):
+    /// the value bootstrap target on truncation.
+    pub final_obs: [f32; OBS_DIM],
+    /// Number of physics faults (non-finite state) so far in this env.
+    pub faults: u64,
+}
+
+/// One env: a physics world, a robot, an area and the current episode.
+pub struct Env {
+    pub id: usize,
+    pub area: AreaKind,
+    rect: Rect,
+    cfg: SimConfig,
+    terrain: SharedTerrain,
+    world: PhysicsWorld,
+    robot: Robot,
+    pub episode: Episode,
+    pub episode_index: u64,
+    pub tick: u64,
+    rng: Rng,
+    faults: u64,
+    action: [f32; 2],
+}
+
+impl Env {
+    /// A new env at a random pose in its area with its first target (SPEC S3).
+    pub fn new(id: usize, cfg: &SimConfig, terrain: &SharedTerrain, seed: u64) -> Self {
+        let area = cfg.area_of(id);
+        let rect = match area {
+            AreaKind::Flat => cfg.terrain.flat_area,
+            AreaKind::Rough => cfg.terrain.rough_area,
+        };
+        let mut rng = Rng::derive(seed, id as u64);
+        let (world, robot) = spawn(cfg, terrain, &rect, &mut rng);
+        let mut env = Self {
+            id,
+            area,
+            rect,
+            cfg: cfg.clone(),
+            terrain: terrain.clone(),
+            world,
+            robot,
+            episode: Episode::new(&cfg.task, [0.0; 2], [0.0; 2]),
+            episode_index: 0,
+            tick: 0,
+            rng,
+            faults: 0,
+            action: [0.0; 2],
+        };
+        env.new_episode();
+        env
+    }
+
+    /// SPEC S3: later episodes start where the robot is, with a new target around it.
+    fn new_episode(&mut self) {
+        let start = self.pose().ground();
+        let target = task::draw_target(&self.cfg.task, &self.rect, start, &mut self.rng);
+        self.episode = Episode::new(&self.cfg.task, start, target);
+    }
+
+    pub fn pose(&self) -> PoseState {
+        let body = &self.world.bodies[self.robot.chassis];
+        let t = body.translation();
+        let rot = *body.rotation();
+        PoseState {
+            pos: [t.x as f64, t.y as f64, t.z as f64],
+            rot,
+            euler: unity_euler(rot),
+        }
+    }
+
+    /// World positions of the two wheel centres (left, right).
+    pub fn wheel_centres(&self) -> [[f64; 3]; 2] {
+        self.robot.wheel_bodies.map(|b| {
+            let t = self.world.bodies[b].translation();
+            [t.x as f64, t.y as f64, t.z as f64]
+        })
+    }
+
+    /// The last clipped wheel command, rad/s.
+    pub fn action(&self) -> [f32; 2] {
+        self.action
+    }
+
+    /// SPEC S5: target in the robot frame (3), its X-Z norm (1), cos/sin of θx, θy, θz (6).
+    pub fn observe(&self) -> [f32; OBS_DIM] {
+        let p = self.pose();
+        let [tx, tz] = self.episode.target;
+        let ty = self.terrain.terrain.height_at(tx, tz);
+        let world_rel = Vec3::new(
+            (tx - p.pos[0]) as f32,
+            (ty - p.pos[1]) as f32,
+            (tz - p.pos[2]) as f32,
+        );
+        let local = p.rot.inverse() * world_rel;
+        let [ex, ey, ez] = p.euler;
+        [
+            local.x,
+            local.y,
+            local.z,
+            (local.x * local.x + local.z * local.z).sqrt(),
+            ex.cos() as f32,
+            ex.sin() as f32,
+            ey.cos() as f32,
+            ey.sin() as f32,
+            ez.cos() as f32,
+            ez.sin() as f32,
+        ]
+    }
+
+    /// One decision step: clip the action (SPEC S2), run the physics substeps, apply the
+    /// episode rules, and start the next episode (respawning if the rules say so).
+    pub fn step(&mut self, action: [f32; 2]) -> StepInfo {
+        let limit = self.cfg.robot.action_limit as f32;
+        self.action = action.map(|a| {
+            if a.is_finite() {
+                a.clamp(-limit, limit)
+            } else {
+                0.0
+            }
+        });
+        robot::set_wheel_speeds(&mut self.world, &self.robot, &self.cfg.robot, self.action);
+        for _ in 0..self.cfg.substeps {
+            self.world.step();
+        }
+        self.tick += 1;
+        let p = self.pose();
+        let result = if p.is_finite() {
+            let tip = self.cfg.task.tip_limit_deg.to_radians();
+            let tipped = p.euler[0].abs() > tip || p.euler[2].abs() > tip;
+            let left = !self
+                .rect
+                .contains(p.pos[0], p.pos[2], self.cfg.task.leave_margin);
+            self.episode
+                .step(&self.cfg.task, p.ground(), p.euler[0].cos(), tipped || left)
+        } else {
+            self.faults += 1;
+            tracing::warn!(
+                env = self.id,
+                tick = self.tick,
+                faults = self.faults,
+                "non-finite physics state: respawning"
+            );
+            task::StepResult {
+                reward: 0.0,
+                ending: Some(Ending::Fault),
+            }
+        };
+        let final_obs = if p.is_finite() {
+            self.observe()
+        } else {
+            [0.0; OBS_DIM]
+        };
+        if let Some(ending) = result.ending {
+            if ending.respawns() {
+                let (world, robot) = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
+                (self.world, self.robot) = (world, robot);
+            }
+            self.episode_index += 1;
+            self.new_episode();
+        }
+        StepInfo {
+            reward: result.reward,
+            ending: result.ending,
+            final_obs,
+            faults: self.faults,
+        }
+    }
+}
+
+/// A fresh world with the shared terrain and a robot at a random pose inside `rect`.
+fn spawn(
+    cfg: &SimConfig,
+    terrain: &SharedTerrain,
+    rect: &Rect,
+    rng: &mut Rng,
+) -> (PhysicsWorld, Robot) {
+    let x = rng.range(rect.x[0], rect.x[1]);
+    let z = rng.range(rect.z[0], rect.z[1]);
+    let yaw = rng.range(-std::f64::consts::PI, std::f64::consts::PI);
+    build_world(cfg, terrain, [x, z], yaw)
+}
+
+/// A world with the shared terrain and the robot dropped at ground point `at` facing `yaw`.
+pub fn build_world(
+    cfg: &SimConfig,
+    terrain: &SharedTerrain,
+    at: [f64; 2],
+    yaw: f64,
+) -> (PhysicsWorld, Robot) {
+    let mut world = PhysicsWorld::new();
+    world.integration_parameters.dt = cfg.physics_dt as f32;
+    world.integration_parameters.length_unit = cfg.robot.length_unit as f32;
+    let c = terrain.centre;
+    world.insert_collider(
+        ColliderBuilder::new(terrain.shape.clone())
+            .translation(Vector::new(c[0] as f32, c[1] as f32, c[2] as f32))
+            .friction(1.0)
+            .collision_groups(InteractionGroups::new(
+                TERRAIN_GROUP,
+                robot::ROBOT_GROUP,
+                InteractionTestMode::And,
+            )),
+        None,
+    );
+    // Drop the robot just above the highest ground under its footprint.
+    let r = &cfg.robot;
+    let reach = 0.5 * r.track_width + r.wheel_radius + 2.0 * r.chassis_half_extents[2];
+    let mut ground = f64::MIN;
+    for dx in [-reach, 0.0, reach] {
+        for dz in [-reach, 0.0, reach] {
+            ground = ground.max(terrain.terrain.height_at(at[0] + dx, at[1] + dz));
+        }
+    }
+    let pose = Pose::from_parts(
+        Vector::new(
+            at[0] as f32,
+            (ground + r.wheel_radius + SPAWN_CLEARANCE) as f32,
+            at[1] as f32,
+        ),
+        Quat::from_rotation_y(yaw as f32),
+    );
+    let robot = robot::build(&mut world, r, pose);
+    (world, robot)
+}

@@ -1,0 +1,35 @@
+//! lavatube's simulator: the lava-tube floor, the two-wheeled robot and the paper's task in
+//! rapier3d (SPEC S1–S5), many envs stepped by a few threads, and controllers that act
+//! without a learner. Depends on `common` (never on burn or another process crate).
+//!
+//! Invariants: a run is bit-for-bit reproducible from its seed whatever the thread count;
+//! a non-finite physics state ends that env's episode (truncated) and respawns it, it never
+//! stops the process.
+
+pub mod batch;
+pub mod controllers;
+pub mod env;
+pub mod robot;
+pub mod serve;
+pub mod standalone;
+pub mod task;
+pub mod terrain;
+
+pub use batch::Batch;
+pub use env::{Env, SharedTerrain, StepInfo};
+pub use standalone::{Args, run};
+
+use std::path::PathBuf;
+
+/// Errors of the simulator library, each naming what it is about.
+#[derive(Debug, thiserror::Error)]
+pub enum SimError {
+    #[error("heightmap {path}: {reason}")]
+    Heightmap { path: PathBuf, reason: String },
+    #[error("policy weights {path}: {reason}")]
+    Weights { path: PathBuf, reason: String },
+    #[error("telemetry {path}: {reason}")]
+    Telemetry { path: PathBuf, reason: String },
+    #[error(transparent)]
+    Config(#[from] common::ConfigError),
+}

@@ -1,0 +1,214 @@
+//! `sim-proc` on its own: step the envs with a controller and write per-tick telemetry,
+//! with no other process involved.
+
+use crate::controllers::{Controller, GoToController, PolicyController, RandomController};
+use crate::env::{Env, SharedTerrain, StepInfo};
+use crate::terrain::Terrain;
+use crate::{Batch, SimError};
+use anyhow::Context;
+use common::{Config, OBS_DIM, Policy, TelemetryRow};
+use std::path::PathBuf;
+
+/// Which controller drives the envs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ControllerKind {
+    /// Uniform random wheel commands, each held for `--hold` ticks.
+    Random,
+    /// Proportional steering toward each target.
+    Goto,
+    /// A trained policy from `--weights` (mean action).
+    Policy,
+}
+
+/// Command-line arguments of `sim-proc`.
+#[derive(Debug, Clone, clap::Parser)]
+#[command(
+    name = "sim-proc",
+    version,
+    about = "Steps lavatube robot environments in rapier3d"
+)]
+pub struct Args {
+    /// Config file (TOML); the defaults are used when omitted.
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Controller that drives every env.
+    #[arg(long, value_enum, default_value = "goto")]
+    pub controller: ControllerKind,
+    /// Policy file for `--controller policy` (written by the learner's export).
+    #[arg(long, required_if_eq("controller", "policy"))]
+    pub weights: Option<PathBuf>,
+    /// Decision steps to run (per env).
+    #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub steps: u64,
+    /// Ticks a random command is held.
+    #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
+    pub hold: u32,
+    /// Write per-tick telemetry (CSV, one row per env and tick) here.
+    #[arg(long)]
+    pub telemetry: Option<PathBuf>,
+    /// Override `run.seed`.
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Join run ID over shared memory (as the launcher starts it) instead of running alone:
+    /// act with the learner's policy and publish rollouts and telemetry.
+    #[arg(long, value_parser = parse_run_id, conflicts_with_all = ["controller", "weights", "steps", "telemetry"])]
+    pub run_id: Option<String>,
+}
+
+fn parse_run_id(s: &str) -> Result<String, String> {
+    common::ipc::validate_run_id(s).map(|_| s.to_string())
+}
+
+/// Episode outcomes over a run.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+pub struct Summary {
+    pub ticks: u64,
+    pub episodes: u64,
+    pub successes: u64,
+    pub faults: u64,
+    /// Mean decision steps of successful episodes.
+    pub mean_reach_steps: f64,
+}
+
+/// One telemetry row for an env after a step.
+pub fn telemetry_row(env: &Env, info: &StepInfo, target: [f64; 2]) -> TelemetryRow {
+    let p = env.pose();
+    let [l, r] = env.action();
+    TelemetryRow {
+        env: env.id as u32,
+        tick: env.tick - 1,
+        area: env.area,
+        episode: env.episode_index - u64::from(info.ending.is_some()),
+        x: p.pos[0],
+        y: p.pos[1],
+        z: p.pos[2],
+        theta_x: p.euler[0],
+        theta_y: p.euler[1],
+        theta_z: p.euler[2],
+        sin_pitch: p.euler[0].sin(),
+        action_left: l as f64,
+        action_right: r as f64,
+        reward: info.reward,
+        terminated: info.ending.is_some_and(|e| e.terminated()),
+        truncated: info.ending.is_some_and(|e| e.truncated()),
+        success: info.ending == Some(crate::task::Ending::Success),
+        target_x: target[0],
+        target_z: target[1],
+    }
+}
+
+/// Runs `steps` decision steps of every env under `controller`, handing each tick's rows to
+/// `sink`. Returns the episode summary.
+pub fn drive(
+    batch: &mut Batch,
+    controller: &mut dyn Controller,
+    steps: u64,
+    mut sink: impl FnMut(&TelemetryRow) -> anyhow::Result<()>,
+) -> anyhow::Result<Summary> {
+    let n = batch.len();
+    let mut obs = vec![[0.0f32; OBS_DIM]; n];
+    let mut actions = vec![[0.0f32; 2]; n];
+    let mut infos = vec![StepInfo::default(); n];
+    batch.observe(&mut obs);
+    let mut s = Summary::default();
+    let mut reach_steps = 0u64;
+    for _ in 0..steps {
+        for (i, a) in actions.iter_mut().enumerate() {
+            *a = controller.act(i, &obs[i]);
+        }
+        let targets: Vec<[f64; 2]> = batch.envs.iter().map(|e| e.episode.target).collect();
+        let steps_before: Vec<u32> = batch.envs.iter().map(|e| e.episode.steps).collect();
+        batch.step(&actions, &mut infos, &mut obs);
+        for (i, env) in batch.envs.iter().enumerate() {
+            let info = &infos[i];
+            sink(&telemetry_row(env, info, targets[i]))?;
+            if let Some(end) = info.ending {
+                s.episodes += 1;
+                if end == crate::task::Ending::Success {
+                    s.successes += 1;
+                    reach_steps += u64::from(steps_before[i]) + 1;
+                }
+            }
+        }
+        s.ticks += 1;
+    }
+    s.faults = infos.iter().map(|i| i.faults).sum();
+    s.mean_reach_steps = if s.successes > 0 {
+        reach_steps as f64 / s.successes as f64
+    } else {
+        0.0
+    };
+    Ok(s)
+}
+
+/// The standalone simulator: parse config, build envs, drive them, write telemetry.
+pub fn run(args: Args) -> anyhow::Result<Summary> {
+    let mut cfg = match &args.config {
+        Some(path) => Config::load(path)?,
+        None => Config::default(),
+    };
+    if let Some(seed) = args.seed {
+        cfg.run.seed = seed;
+    }
+    if let Some(run) = &args.run_id {
+        crate::serve::serve(&cfg, run)?;
+        return Ok(Summary::default());
+    }
+    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
+    let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
+    let limit = cfg.sim.robot.action_limit;
+    let mut controller: Box<dyn Controller> = match args.controller {
+        ControllerKind::Random => Box::new(RandomController::new(limit, args.hold, cfg.run.seed)),
+        ControllerKind::Goto => Box::new(GoToController::new(limit)),
+        ControllerKind::Policy => {
+            let path = args
+                .weights
+                .clone()
+                .context("--controller policy needs --weights")?;
+            let bytes = std::fs::read(&path).map_err(|e| SimError::Weights {
+                path: path.clone(),
+                reason: e.to_string(),
+            })?;
+            let policy = Policy::from_bytes(&bytes, &path)?;
+            if policy.layout().obs_dim != OBS_DIM || policy.layout().act_dim != common::ACT_DIM {
+                return Err(SimError::Weights {
+                    path,
+                    reason: format!(
+                        "network is {:?}, the sim needs obs {OBS_DIM} act {}",
+                        policy.layout(),
+                        common::ACT_DIM
+                    ),
+                }
+                .into());
+            }
+            Box::new(PolicyController::new(policy, false, cfg.run.seed))
+        }
+    };
+    tracing::info!(envs = batch.len(), steps = args.steps, controller = ?args.controller, "sim-proc standalone");
+    let started = std::time::Instant::now();
+    let summary = match &args.telemetry {
+        Some(path) => {
+            let tele_err = |e: &dyn std::fmt::Display| SimError::Telemetry {
+                path: path.clone(),
+                reason: e.to_string(),
+            };
+            let mut w = csv::Writer::from_path(path).map_err(|e| tele_err(&e))?;
+            let s = drive(&mut batch, controller.as_mut(), args.steps, |row| {
+                Ok(w.serialize(row).map_err(|e| tele_err(&e))?)
+            })?;
+            w.flush().map_err(|e| tele_err(&e))?;
+            s
+        }
+        None => drive(&mut batch, controller.as_mut(), args.steps, |_| Ok(()))?,
+    };
+    let secs = started.elapsed().as_secs_f64();
+    tracing::info!(
+        ticks = summary.ticks,
+        episodes = summary.episodes,
+        successes = summary.successes,
+        faults = summary.faults,
+        decision_steps_per_s = (summary.ticks * batch.len() as u64) as f64 / secs,
+        "done"
+    );
+    Ok(summary)
+}

@@ -1,0 +1,213 @@
+//! Physics scene tests: the robot against physical expectations (SPEC S2), and the
+//! simulator's determinism and fault handling.
+
+use common::config::{SimConfig, TerrainConfig};
+use sim_proc::controllers::{GoToController, RandomController};
+use sim_proc::env::{SharedTerrain, build_world, unity_euler};
+use sim_proc::robot;
+use sim_proc::standalone::drive;
+use sim_proc::terrain::Terrain;
+use sim_proc::{Batch, Env};
+
+/// A perfectly flat floor: no micro-relief, no bumps.
+fn plane() -> (SimConfig, SharedTerrain) {
+    let cfg = SimConfig {
+        terrain: TerrainConfig {
+            flat_relief: 0.0,
+            rough_amplitude: 0.0,
+            ..TerrainConfig::default()
+        },
+        ..SimConfig::default()
+    };
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+    (cfg, terrain)
+}
+
+/// Drives a robot placed at (-1, -0.25) facing +Z with constant wheel speeds and returns the
+/// chassis pose after every physics step.
+fn drive_const(speeds: [f32; 2], settle_s: f64, drive_s: f64) -> Vec<(glam::Vec3, glam::Quat)> {
+    let (cfg, terrain) = plane();
+    let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0);
+    let steps = |s: f64| (s / cfg.physics_dt).round() as usize;
+    for _ in 0..steps(settle_s) {
+        world.step();
+    }
+    robot::set_wheel_speeds(&mut world, &robot, &cfg.robot, speeds);
+    let mut poses = Vec::new();
+    for _ in 0..steps(drive_s) {
+        world.step();
+        let b = &world.bodies[robot.chassis];
+        poses.push((b.translation(), *b.rotation()));
+    }
+    poses
+}
+
+#[test]
+fn rests_at_the_geometric_height_on_flat_ground() {
+    let poses = drive_const([0.0, 0.0], 2.0, 0.5);
+    let (p, q) = poses[poses.len() - 1];
+    // The axle (the chassis origin) rests one wheel radius above the plane.
+    let want = SimConfig::default().robot.wheel_radius as f32;
+    assert!(
+        (p.y - want).abs() < 0.002,
+        "axle at {} m, expected {want} m",
+        p.y
+    );
+    // Level: the skid's bottom is level with the wheels'.
+    let [pitch, _, roll] = unity_euler(q);
+    assert!(
+        pitch.abs() < 0.01 && roll.abs() < 0.01,
+        "pitch {pitch} roll {roll}"
+    );
+}
+
+#[test]
+fn equal_commands_drive_straight_at_omega_r() {
+    let omega = 3.0f32;
+    let t = 5.0;
+    let poses = drive_const([omega, omega], 1.0, t);
+    let (start, end) = (poses[0].0, poses[poses.len() - 1].0);
+    let r = SimConfig::default().robot.wheel_radius as f32;
+    let expected = omega * r * t as f32;
+    let along = end.z - start.z;
+    assert!(
+        (along - expected).abs() < 0.05 * expected,
+        "travelled {along} m, ω·r·t = {expected} m"
+    );
+    assert!(
+        (end.x - start.x).abs() < 0.02,
+        "lateral drift {} m",
+        end.x - start.x
+    );
+}
+
+#[test]
+fn opposite_commands_turn_at_the_kinematic_yaw_rate() {
+    let omega = 2.0f32;
+    let poses = drive_const([-omega, omega], 1.0, 3.0);
+    let cfg = SimConfig::default().robot;
+    // Right wheel forward, left backward: yaw rate 2·ω·r / track, counter-clockwise about +Y.
+    let expected = 2.0 * omega as f64 * cfg.wheel_radius / cfg.track_width;
+    // Unwrap the yaw over the last 2 s (skip 1 s of spin-up).
+    let dt = SimConfig::default().physics_dt;
+    let yaws: Vec<f64> = poses.iter().map(|(_, q)| unity_euler(*q)[1]).collect();
+    let from = (1.0 / dt) as usize;
+    let mut turned = 0.0;
+    for w in yaws[from..].windows(2) {
+        let mut d = w[1] - w[0];
+        if d > std::f64::consts::PI {
+            d -= std::f64::consts::TAU;
+        } else if d < -std::f64::consts::PI {
+            d += std::f64::consts::TAU;
+        }
+        turned += d;
+    }
+    let rate = turned / ((yaws.len() - 1 - from) as f64 * dt);
+    assert!(
+        (rate - expected).abs() < 0.1 * expected,
+        "yaw rate {rate} rad/s, kinematic {expected} rad/s"
+    );
+}
+
+fn rough_cfg(envs: usize) -> SimConfig {
+    SimConfig {
+        flat_envs: 0,
+        rough_envs: envs,
+        ..SimConfig::default()
+    }
+}
+
+#[test]
+fn random_driving_on_rough_ground_stays_physical() {
+    let cfg = rough_cfg(1);
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+    let mut env = Env::new(0, &cfg, &terrain, 11);
+    let mut ctrl = RandomController::new(cfg.robot.action_limit, 10, 11);
+    use sim_proc::controllers::Controller;
+    let mut deepest = 0.0f64;
+    for _ in 0..3000 {
+        let a = ctrl.act(0, &env.observe());
+        let info = env.step(a);
+        assert_eq!(info.faults, 0, "non-finite state at tick {}", env.tick);
+        let p = env.pose();
+        assert!(p.is_finite());
+        let tip = 60f64.to_radians();
+        assert!(
+            p.euler[0].abs() < tip && p.euler[2].abs() < tip,
+            "flipped at tick {}: {:?}",
+            env.tick,
+            p.euler
+        );
+        for c in env.wheel_centres() {
+            let depth = cfg.robot.wheel_radius - (c[1] - terrain.terrain.height_at(c[0], c[2]));
+            deepest = deepest.max(depth);
+        }
+    }
+    assert!(deepest < 0.005, "a wheel sank {deepest} m into the ground");
+}
+
+/// Mean over envs and ticks of the rolling std (window 70) of sin θx under go-to-target.
+fn mean_rolling_std(cfg: &SimConfig, ticks: u64) -> f64 {
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+    let mut batch = Batch::new(cfg, &terrain, 3);
+    let mut ctrl = GoToController::new(cfg.robot.action_limit);
+    let mut series = vec![Vec::new(); batch.len()];
+    drive(&mut batch, &mut ctrl, ticks, |row| {
+        series[row.env as usize].push(row.sin_pitch);
+        Ok(())
+    })
+    .expect("drive");
+    let (mut sum, mut n) = (0.0, 0);
+    for s in &series {
+        for w in s[100..].windows(70) {
+            let m = w.iter().sum::<f64>() / 70.0;
+            sum += (w.iter().map(|v| (v - m).powi(2)).sum::<f64>() / 69.0).sqrt();
+            n += 1;
+        }
+    }
+    sum / n as f64
+}
+
+#[test]
+fn pitch_varies_more_on_rough_than_flat_ground() {
+    // SPEC S7's protocol: 500 ticks per env, the first 100 dropped, window 70.
+    let flat = mean_rolling_std(
+        &SimConfig {
+            flat_envs: 4,
+            rough_envs: 0,
+            ..SimConfig::default()
+        },
+        500,
+    );
+    let rough = mean_rolling_std(&rough_cfg(4), 500);
+    assert!(
+        rough >= 3.0 * flat,
+        "rolling std of sin θx: rough {rough}, flat {flat}"
+    );
+}
+
+#[test]
+fn same_seed_gives_identical_telemetry_whatever_the_thread_count() {
+    let record = |threads: usize| {
+        let cfg = SimConfig {
+            flat_envs: 2,
+            rough_envs: 2,
+            threads,
+            ..SimConfig::default()
+        };
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut batch = Batch::new(&cfg, &terrain, 5);
+        let mut ctrl = RandomController::new(3.0, 7, 5);
+        let mut rows = Vec::new();
+        drive(&mut batch, &mut ctrl, 200, |r| {
+            rows.push(format!("{r:?}"));
+            Ok(())
+        })
+        .expect("drive");
+        rows
+    };
+    let a = record(1);
+    assert_eq!(a.len(), 800);
+    assert_eq!(a, record(1), "same seed, same thread count");
+    assert_eq!(a, record(2), "same seed, two threads");
+}
