@@ -129,6 +129,10 @@ pub struct EnvTick {
 pub struct TerrainHeader {
     /// The telemetry tick this estimate answers.
     pub tick: u64,
+    /// Estimates so far that had a class, and how many matched the true area (scoring only:
+    /// the estimator never trains on labels).
+    pub scored: u64,
+    pub correct: u64,
     pub envs: u32,
     /// Mixture refits so far.
     pub refits: u32,
@@ -207,9 +211,10 @@ mod tests {
     fn terrain_layouts() {
         assert_eq!(
             (size_of::<TerrainHeader>(), align_of::<TerrainHeader>()),
-            (16, 8),
+            (32, 8),
             "{MSG}"
         );
+        assert_eq!(offset_of!(TerrainHeader, envs), 24, "{MSG}");
         assert_eq!(
             (size_of::<TerrainEstimate>(), align_of::<TerrainEstimate>()),
             (20, 4),

@@ -1,0 +1,153 @@
+//! The command line: clap derive, one file per subcommand. Values are checked by clap's
+//! parsers before any work starts; the config file is parsed and validated up front.
+
+pub mod analyze;
+pub mod online;
+pub mod serve;
+
+use clap::{Parser, Subcommand};
+use std::path::{Path, PathBuf};
+
+/// lavatube terrain estimator: rolling pitch statistics and Gaussian mixtures (SPEC S7).
+#[derive(Debug, Parser)]
+#[command(name = "estimator-proc", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Reproduce the paper's terrain-identification analysis on recorded telemetry:
+    /// results.json, results.md (Table 3) and the figures (Figs. 5–8).
+    Analyze(analyze::AnalyzeArgs),
+    /// Replay recorded telemetry through the online estimator: accuracy against window size
+    /// and the delay to detect a terrain change.
+    Online(online::OnlineArgs),
+    /// Join a run over shared memory: classify every env's terrain online and publish it.
+    Serve(serve::ServeArgs),
+}
+
+/// Arguments shared by the subcommands that read a recording.
+#[derive(Debug, clap::Args)]
+pub struct InputArgs {
+    /// Telemetry CSV; its header is the `TelemetryRow` field names (as `sim-proc` writes it).
+    pub traces: PathBuf,
+    /// Rolling-window sizes in ticks, comma-separated, each 2..=100000 [default: the config's
+    /// `estimator.windows`, i.e. 10,20,40,70].
+    #[arg(long, value_delimiter = ',', value_parser = parse_window)]
+    pub windows: Option<Vec<usize>>,
+    /// lavatube TOML config; its `[estimator]` table sets warm-up, components, EM settings
+    /// [default: built-in defaults].
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Seed of the k-means++ initialisations [default: the config's `run.seed`].
+    #[arg(long)]
+    pub seed: Option<u64>,
+}
+
+impl InputArgs {
+    /// The validated config with `--windows` applied (sorted, deduplicated) and the seed.
+    pub fn resolve(&self) -> anyhow::Result<(common::config::EstimatorConfig, u64)> {
+        let cfg = load_config(self.config.as_deref())?;
+        let mut est = cfg.estimator;
+        if let Some(windows) = &self.windows {
+            est.windows = windows.clone();
+        }
+        est.windows.sort_unstable();
+        est.windows.dedup();
+        Ok((est, self.seed.unwrap_or(cfg.run.seed)))
+    }
+}
+
+fn load_config(path: Option<&Path>) -> anyhow::Result<common::Config> {
+    let Some(path) = path else {
+        return Ok(common::Config::default());
+    };
+    Ok(common::Config::load(path).map_err(crate::EstimatorError::from)?)
+}
+
+/// A window size: an integer in 2..=100000 (the config's range).
+fn parse_window(s: &str) -> Result<usize, String> {
+    let w: usize = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a window size (an integer)"))?;
+    if (2..=100_000).contains(&w) {
+        Ok(w)
+    } else {
+        Err(format!("window {w} is out of range 2..=100000"))
+    }
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Analyze(args) => analyze::execute(&args),
+        Command::Online(args) => online::execute(&args),
+        Command::Serve(args) => serve::execute(&args),
+    }
+}
+
+/// Writes a report's text to stdout: the CLI's output to its user.
+#[allow(
+    clippy::print_stdout,
+    reason = "the CLI prints its results table to the user"
+)]
+pub fn print_output(text: &str) {
+    println!("{text}");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    #[test]
+    fn cli_is_well_formed_and_every_argument_is_documented() {
+        Cli::command().debug_assert();
+        for sub in Cli::command().get_subcommands() {
+            for arg in sub.get_arguments() {
+                let id = arg.get_id().as_str();
+                if id != "help" && id != "version" {
+                    assert!(
+                        arg.get_help().is_some(),
+                        "{} --{id} has no help",
+                        sub.get_name()
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn windows_are_checked_before_anything_runs() {
+        assert_eq!(parse_window("70"), Ok(70));
+        assert!(parse_window("1").is_err());
+        assert!(parse_window("x").is_err());
+        let cli = Cli::try_parse_from([
+            "estimator-proc",
+            "analyze",
+            "t.csv",
+            "--windows",
+            "10,70",
+            "--out",
+            "d",
+        ]);
+        assert!(cli.is_ok());
+        let bad = Cli::try_parse_from([
+            "estimator-proc",
+            "analyze",
+            "t.csv",
+            "--windows",
+            "10,1",
+            "--out",
+            "d",
+        ]);
+        assert!(
+            bad.expect_err("rejected")
+                .to_string()
+                .contains("out of range")
+        );
+    }
+}

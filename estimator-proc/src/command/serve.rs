@@ -1,0 +1,92 @@
+//! `estimator-proc serve`: the online estimator inside a run. Reads every telemetry tick,
+//! classifies each env's terrain from its rolling pitch statistics, and publishes the
+//! estimates on `terrain` (SPEC S7 online; DESIGN §1).
+
+use crate::OnlineEstimator;
+use common::ipc::{self, Bus};
+use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Arguments of `serve` (the launcher passes them).
+#[derive(Debug, clap::Args)]
+pub struct ServeArgs {
+    /// The run's resolved config (TOML).
+    #[arg(long)]
+    pub config: PathBuf,
+    /// The run to join over shared memory.
+    #[arg(long, value_parser = parse_run_id)]
+    pub run_id: String,
+}
+
+fn parse_run_id(s: &str) -> Result<String, String> {
+    ipc::validate_run_id(s).map(|_| s.to_string())
+}
+
+pub fn execute(args: &ServeArgs) -> anyhow::Result<()> {
+    let cfg = super::load_config(Some(&args.config))?;
+    let n = cfg.sim.num_envs();
+    let bus = Bus::connect(&args.run_id, "estimator")?;
+    let control = bus.control_listener()?;
+    let rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
+    let tx = bus.sender::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None, n)?;
+    let mut est = OnlineEstimator::new(&cfg.estimator, n, cfg.run.seed)?;
+    let mut out = vec![TerrainEstimate::default(); n];
+    let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
+    tracing::info!(
+        envs = n,
+        window = cfg.estimator.online_window,
+        "estimator serving"
+    );
+    while !bus.stop_requested(&control) {
+        rx.wait(Duration::from_millis(100))?;
+        while let Some(sample) = rx.try_recv()? {
+            let h = *sample.user_header();
+            for t in sample.payload().iter().filter(|t| (t.env as usize) < n) {
+                let env = t.env as usize;
+                if t.events & wire::EVENT_FAULT != 0 {
+                    // A respawned robot starts a new series: its old window says nothing.
+                    est.reset_env(env)?;
+                }
+                let e = match est.observe(env, f64::from(t.sin_pitch)) {
+                    Ok(e) => e,
+                    Err(err) => {
+                        tracing::warn!(env, error = %err, "observation skipped");
+                        continue;
+                    }
+                };
+                let class = e.class.map_or(wire::CLASS_UNKNOWN, |c| c.min(254) as u8);
+                if class != wire::CLASS_UNKNOWN {
+                    // Labels score the estimator; they never reach the fit.
+                    scored += 1;
+                    correct += u64::from((class > 0) == (t.area > 0));
+                }
+                out[env] = TerrainEstimate {
+                    env: t.env,
+                    class,
+                    posterior: e.posterior as f32,
+                    window_std: e.window_std.unwrap_or(0.0) as f32,
+                    window: e.window as u32,
+                    ..TerrainEstimate::default()
+                };
+            }
+            let header = TerrainHeader {
+                tick: h.tick,
+                scored,
+                correct,
+                envs: n as u32,
+                refits: est.stats().fits as u32,
+            };
+            tx.send(header, &out)?;
+            ticks += 1;
+        }
+    }
+    tracing::info!(
+        ticks,
+        scored,
+        correct,
+        refits = est.stats().fits,
+        "estimator done"
+    );
+    Ok(())
+}

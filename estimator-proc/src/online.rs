@@ -1,0 +1,464 @@
+//! Online terrain estimation: what the runtime calls once per env and tick.
+//!
+//! Per env: the rolling std of sin θx over the last `online-window` ticks (sample std,
+//! [`Ddof::Sample`]). Every full-window value also goes into a pool shared by all envs (the
+//! newest `pool-size` values); the mixture is first fitted once the pool holds
+//! [`MIN_POINTS_PER_COMPONENT`] values per component, then refitted on the pool every
+//! `refit-every` ticks (a tick = one observation of every env).
+//!
+//! Label stability: components are always ordered by ascending mean (0 = flat, SPEC S7), and a
+//! refit is a warm start from the previous model, so each component continues as itself. In
+//! one dimension the order-preserving pairing of old and new components is also the one that
+//! minimises the total shift of their means, so "sort by mean" *is* the matching to the
+//! previous components; the HMM belief of every env is carried over under it. A refit that
+//! fails (e.g. a constant pool) keeps the previous model and is counted in [`OnlineStats`].
+//! Caveat: the first fit defines the classes, so the pool should see every terrain before it
+//! (or start from an offline model with [`OnlineEstimator::with_model`]).
+//!
+//! Optional K-state HMM forward filter (`stay-prob` > 0): the terrain persists from one tick
+//! to the next with probability `stay-prob` and otherwise moves to any other class uniformly;
+//! the emission is the component density of the window std, raised to the power `1/w`.
+//! Consecutive windows share `w − 1` of their `w` samples, so each sample would otherwise be
+//! counted as evidence `w` times and the filter would just echo the raw classifier's runs of
+//! errors; tempered, it accumulates roughly one window's worth of independent evidence. It
+//! trades a few ticks of detection delay for far fewer misclassifications at short windows.
+//! `stay-prob = 0` reports the raw posterior.
+
+use crate::gmm::{self, FitOptions, Gmm};
+use crate::rolling::{Ddof, RollingStd};
+use crate::{EstimatorError, Result};
+use common::config::EstimatorConfig;
+
+/// Pool values per mixture component before the first fit.
+pub const MIN_POINTS_PER_COMPONENT: usize = 50;
+
+/// The estimate for one env after one tick.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Estimate {
+    /// Terrain class: mixture component, 0 = lowest mean = flat; HMM-filtered when the filter
+    /// is on. `None` until the window is full and a mixture has been fitted.
+    pub class: Option<usize>,
+    /// Probability of `class` (filtered belief or raw posterior); 0 when `class` is `None`.
+    pub posterior: f64,
+    /// The raw mixture classification (maximum posterior, no filter).
+    pub raw_class: Option<usize>,
+    /// Sample std of sin θx over the window, once full.
+    pub window_std: Option<f64>,
+    /// Window size, ticks.
+    pub window: usize,
+}
+
+/// Counters for monitoring.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct OnlineStats {
+    pub observations: u64,
+    pub fits: u64,
+    pub failed_fits: u64,
+}
+
+#[derive(Debug, Clone)]
+struct EnvState {
+    rolling: RollingStd,
+    /// HMM belief over classes; empty until the env's first classified tick.
+    belief: Vec<f64>,
+}
+
+/// The newest `cap` window-std values of all envs (a ring; order is irrelevant to EM).
+#[derive(Debug, Clone)]
+struct Pool {
+    values: Vec<f64>,
+    cap: usize,
+    next: usize,
+}
+
+impl Pool {
+    fn push(&mut self, x: f64) {
+        if self.values.len() < self.cap {
+            self.values.push(x);
+        } else {
+            self.values[self.next] = x;
+            self.next = (self.next + 1) % self.cap;
+        }
+    }
+}
+
+/// Per-env online terrain classifier with a periodically refitted mixture.
+#[derive(Debug, Clone)]
+pub struct OnlineEstimator {
+    opts: FitOptions,
+    window: usize,
+    /// Observations between refits: `refit-every` ticks × envs.
+    refit_interval: u64,
+    min_first_fit: usize,
+    stay_prob: f64,
+    envs: Vec<EnvState>,
+    pool: Pool,
+    model: Option<Gmm>,
+    next_fit_at: u64,
+    stats: OnlineStats,
+    scratch: Vec<f64>,
+}
+
+impl OnlineEstimator {
+    /// An estimator for `num_envs` envs with no mixture yet. `seed` drives the first fit's
+    /// k-means++ seeding. The config is assumed validated ([`common::Config::validate`]).
+    pub fn new(cfg: &EstimatorConfig, num_envs: usize, seed: u64) -> Result<Self> {
+        if num_envs == 0 {
+            return Err(EstimatorError::NoEnvs);
+        }
+        let rolling = RollingStd::new(cfg.online_window, Ddof::Sample)?;
+        let k = cfg.components.max(1);
+        Ok(Self {
+            opts: FitOptions::from_config(cfg, seed),
+            window: cfg.online_window,
+            refit_interval: (cfg.refit_every.max(1) * num_envs) as u64,
+            min_first_fit: (MIN_POINTS_PER_COMPONENT * k).min(cfg.pool_size.max(k)),
+            stay_prob: cfg.stay_prob,
+            envs: vec![
+                EnvState {
+                    rolling,
+                    belief: Vec::with_capacity(k),
+                };
+                num_envs
+            ],
+            pool: Pool {
+                values: Vec::with_capacity(cfg.pool_size.min(1 << 20)),
+                cap: cfg.pool_size.max(1),
+                next: 0,
+            },
+            model: None,
+            next_fit_at: 0,
+            stats: OnlineStats::default(),
+            scratch: vec![0.0; k],
+        })
+    }
+
+    /// As [`new`](Self::new), but classifying from the first full window with `model` (e.g.
+    /// from an offline analysis); refits warm-start from it.
+    pub fn with_model(
+        cfg: &EstimatorConfig,
+        num_envs: usize,
+        seed: u64,
+        model: Gmm,
+    ) -> Result<Self> {
+        let mut est = Self::new(cfg, num_envs, seed)?;
+        est.scratch = vec![0.0; model.components()];
+        est.opts.components = model.components();
+        est.model = Some(model);
+        est.next_fit_at = est.refit_interval;
+        Ok(est)
+    }
+
+    pub fn model(&self) -> Option<&Gmm> {
+        self.model.as_ref()
+    }
+
+    pub fn stats(&self) -> OnlineStats {
+        self.stats
+    }
+
+    pub fn num_envs(&self) -> usize {
+        self.envs.len()
+    }
+
+    /// Forgets env `env`'s window and belief (after a respawn or teleport).
+    pub fn reset_env(&mut self, env: usize) -> Result<()> {
+        let envs = self.envs.len();
+        let state = self
+            .envs
+            .get_mut(env)
+            .ok_or(EstimatorError::EnvOutOfRange { env, envs })?;
+        state.rolling.clear();
+        state.belief.clear();
+        Ok(())
+    }
+
+    /// Feeds env `env`'s sin θx for this tick and returns its estimate. A non-finite value is
+    /// refused (and not fed), so one bad sample cannot poison the window.
+    pub fn observe(&mut self, env: usize, sin_pitch: f64) -> Result<Estimate> {
+        let envs = self.envs.len();
+        if env >= envs {
+            return Err(EstimatorError::EnvOutOfRange { env, envs });
+        }
+        if !sin_pitch.is_finite() {
+            return Err(EstimatorError::NonFiniteObservation {
+                env,
+                value: sin_pitch,
+            });
+        }
+        let window_std = self.envs[env].rolling.push(sin_pitch);
+        if let Some(s) = window_std {
+            self.pool.push(s);
+        }
+        self.stats.observations += 1;
+        self.maybe_refit();
+        let pending = Estimate {
+            class: None,
+            posterior: 0.0,
+            raw_class: None,
+            window_std,
+            window: self.window,
+        };
+        let (Some(s), Some(model)) = (window_std, self.model.as_ref()) else {
+            return Ok(pending);
+        };
+        let k = model.components();
+        if self.scratch.len() < k {
+            self.scratch.resize(k, 0.0);
+        }
+        // One pass of ln(w_k N_k(s)) serves both the raw posterior and the HMM emission.
+        let joint = &mut self.scratch[..k];
+        let log_evidence = model.joint_log(s, joint);
+        let raw_class = argmax(joint);
+        let raw_posterior = (joint[raw_class] - log_evidence).exp();
+        if self.stay_prob <= 0.0 {
+            return Ok(Estimate {
+                class: Some(raw_class),
+                posterior: raw_posterior,
+                raw_class: Some(raw_class),
+                ..pending
+            });
+        }
+        let belief = &mut self.envs[env].belief;
+        if belief.len() != k {
+            belief.clear();
+            belief.extend_from_slice(model.weights());
+        }
+        for (l, lw) in joint.iter_mut().zip(model.log_weights()) {
+            *l -= lw;
+        }
+        hmm_forward(belief, joint, 1.0 / self.window as f64, self.stay_prob);
+        let class = argmax(belief);
+        Ok(Estimate {
+            class: Some(class),
+            posterior: belief[class],
+            raw_class: Some(raw_class),
+            ..pending
+        })
+    }
+
+    fn maybe_refit(&mut self) {
+        if self.stats.observations < self.next_fit_at || self.pool.values.len() < self.min_first_fit
+        {
+            return;
+        }
+        self.next_fit_at = self.stats.observations + self.refit_interval;
+        let outcome = match &self.model {
+            None => gmm::fit(&self.pool.values, &self.opts),
+            Some(previous) => gmm::fit_from(&self.pool.values, previous, &self.opts),
+        };
+        match outcome {
+            Ok(report) => {
+                self.stats.fits += 1;
+                self.model = Some(report.model);
+            }
+            Err(error) => {
+                self.stats.failed_fits += 1;
+                tracing::warn!(%error, pool = self.pool.values.len(), "terrain mixture fit failed; keeping the previous model");
+            }
+        }
+    }
+}
+
+/// One forward-filter step: predict with the sticky transition, weight by the emission
+/// log-densities `log_emission` (read only) raised to `evidence`, normalise. Every predicted
+/// probability is at least `min(stay, (1 − stay)/(K − 1)) > 0`, so the belief never
+/// collapses to all zeros.
+fn hmm_forward(belief: &mut [f64], log_emission: &[f64], evidence: f64, stay: f64) {
+    let k = belief.len();
+    let switch = if k > 1 {
+        (1.0 - stay) / (k - 1) as f64
+    } else {
+        0.0
+    };
+    let pivot = log_emission
+        .iter()
+        .copied()
+        .fold(f64::NEG_INFINITY, f64::max);
+    let mut total = 0.0;
+    for (b, l) in belief.iter_mut().zip(log_emission.iter()) {
+        let predicted = stay * *b + switch * (1.0 - *b);
+        *b = predicted * (evidence * (l - pivot)).exp();
+        total += *b;
+    }
+    for b in belief.iter_mut() {
+        *b /= total;
+    }
+}
+
+fn argmax(v: &[f64]) -> usize {
+    let mut best = 0;
+    for (i, &x) in v.iter().enumerate() {
+        if x > v[best] {
+            best = i;
+        }
+    }
+    best
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn config(stay_prob: f64) -> EstimatorConfig {
+        EstimatorConfig {
+            online_window: 20,
+            refit_every: 100,
+            pool_size: 4_000,
+            stay_prob,
+            ..EstimatorConfig::default()
+        }
+    }
+
+    /// Two envs, env 0 flat (pitch noise σ 0.02), env 1 rough (σ 0.08).
+    fn feed(est: &mut OnlineEstimator, ticks: usize, rng: &mut common::Rng) -> Vec<[Estimate; 2]> {
+        (0..ticks)
+            .map(|_| {
+                let a = est.observe(0, 0.02 * rng.normal()).expect("observe");
+                let b = est.observe(1, 0.08 * rng.normal()).expect("observe");
+                [a, b]
+            })
+            .collect()
+    }
+
+    #[test]
+    fn hand_computed_hmm_step() {
+        // Belief (½, ½), stay 0.9: prediction stays (½, ½); emissions e^0 and e^−ln 3 = ⅓
+        // (relative) give (¾, ¼).
+        let mut belief = [0.5, 0.5];
+        hmm_forward(&mut belief, &[0.0, -(3f64.ln())], 1.0, 0.9);
+        assert!((belief[0] - 0.75).abs() < 1e-12 && (belief[1] - 0.25).abs() < 1e-12);
+        // From (1, 0): prediction (0.9, 0.1); equal emissions keep it.
+        let mut belief = [1.0, 0.0];
+        hmm_forward(&mut belief, &[-5.0, -5.0], 1.0, 0.9);
+        assert!((belief[0] - 0.9).abs() < 1e-12);
+        // Evidence ½: the ratio 1:⅓ counts as 1:1/√3.
+        let mut belief = [0.5, 0.5];
+        hmm_forward(&mut belief, &[0.0, -(3f64.ln())], 0.5, 0.9);
+        let r = 1.0 / 3f64.sqrt();
+        assert!((belief[0] - 1.0 / (1.0 + r)).abs() < 1e-12);
+        // A hopeless emission (−1e6 in log space) still leaves a finite, normalised belief.
+        let mut belief = [1.0, 0.0];
+        hmm_forward(&mut belief, &[-1e6, 0.0], 1.0, 0.98);
+        assert!(
+            belief.iter().all(|b| b.is_finite())
+                && (belief.iter().sum::<f64>() - 1.0).abs() < 1e-12
+        );
+        assert!(belief[1] > 0.999);
+    }
+
+    #[test]
+    fn pending_until_window_and_first_fit_then_classifies() {
+        let mut est = OnlineEstimator::new(&config(0.98), 2, 1).expect("estimator");
+        let mut rng = common::Rng::new(3);
+        let out = feed(&mut est, 400, &mut rng);
+        assert!(out[0][0].class.is_none() && out[0][0].window_std.is_none());
+        assert_eq!(out[18][0].window_std, None);
+        assert!(out[19][0].window_std.is_some());
+        // 50 per component × 2 = 100 pool values: 2 envs fill it 50 ticks after the window
+        // fills (tick 19), so the first fit is at tick 68.
+        assert!(out[75][0].class.is_some());
+        let tail = &out[200..];
+        let flat_ok = tail.iter().filter(|e| e[0].class == Some(0)).count();
+        let rough_ok = tail.iter().filter(|e| e[1].class == Some(1)).count();
+        assert!(flat_ok >= 195 && rough_ok >= 195, "{flat_ok} {rough_ok}");
+        assert!(
+            tail.iter()
+                .all(|e| e[0].posterior > 0.5 && e[0].posterior <= 1.0)
+        );
+        assert!(est.stats().fits >= 2, "{:?}", est.stats());
+    }
+
+    #[test]
+    fn labels_stay_stable_across_refits_under_drift() {
+        // Both terrains get slowly rougher; refits must keep class 0 = the smoother env.
+        let cfg = EstimatorConfig {
+            stay_prob: 0.0,
+            ..config(0.0)
+        };
+        let mut est = OnlineEstimator::new(&cfg, 2, 2).expect("estimator");
+        let mut rng = common::Rng::new(4);
+        let mut means = Vec::new();
+        for t in 0..3_000 {
+            let scale = 1.0 + t as f64 / 1_500.0;
+            let a = est
+                .observe(0, 0.02 * scale * rng.normal())
+                .expect("observe");
+            let b = est
+                .observe(1, 0.08 * scale * rng.normal())
+                .expect("observe");
+            if t > 200 {
+                assert!(a.class.is_some() && b.class.is_some());
+            }
+            if let Some(m) = est.model() {
+                means.push(m.means().to_vec());
+            }
+        }
+        assert!(est.stats().fits >= 25, "{:?}", est.stats());
+        assert!(means.iter().all(|m| m[0] < m[1]));
+        let last = means.last().expect("fitted");
+        assert!(last[0] > 0.03 && last[1] > 0.12, "{last:?}");
+    }
+
+    #[test]
+    fn hmm_beats_the_raw_classifier_at_a_short_window() {
+        let cfg = EstimatorConfig {
+            online_window: 10,
+            ..config(0.98)
+        };
+        let mut est = OnlineEstimator::new(&cfg, 2, 5).expect("estimator");
+        let mut rng = common::Rng::new(6);
+        // Overlapping noise levels make a 10-tick window ambiguous.
+        let (mut raw, mut filtered, mut n) = (0, 0, 0);
+        for t in 0..4_000 {
+            let a = est.observe(0, 0.03 * rng.normal()).expect("observe");
+            let b = est.observe(1, 0.05 * rng.normal()).expect("observe");
+            if t >= 500 {
+                n += 2;
+                raw += usize::from(a.raw_class == Some(0)) + usize::from(b.raw_class == Some(1));
+                filtered += usize::from(a.class == Some(0)) + usize::from(b.class == Some(1));
+            }
+        }
+        let (raw, filtered) = (raw as f64 / n as f64, filtered as f64 / n as f64);
+        assert!(filtered > raw + 0.05, "filtered {filtered} raw {raw}");
+    }
+
+    #[test]
+    fn bad_input_is_refused_without_poisoning() {
+        let mut est = OnlineEstimator::new(&config(0.98), 1, 1).expect("estimator");
+        assert!(matches!(
+            est.observe(0, f64::NAN),
+            Err(EstimatorError::NonFiniteObservation { env: 0, .. })
+        ));
+        assert!(matches!(
+            est.observe(3, 0.0),
+            Err(EstimatorError::EnvOutOfRange { env: 3, envs: 1 })
+        ));
+        assert!(matches!(
+            OnlineEstimator::new(&config(0.98), 0, 1),
+            Err(EstimatorError::NoEnvs)
+        ));
+        // A constant signal: the first fit fails (one distinct value), nothing panics, no NaN.
+        for _ in 0..500 {
+            let e = est.observe(0, 0.0).expect("observe");
+            assert!(e.class.is_none() && e.posterior == 0.0);
+            assert_eq!(e.window_std, e.window_std.map(|_| 0.0));
+        }
+        assert!(est.stats().failed_fits >= 1 && est.stats().fits == 0);
+    }
+
+    #[test]
+    fn starts_from_a_given_model_and_reset_forgets_the_window() {
+        let model = Gmm::new(vec![0.5, 0.5], vec![0.02, 0.08], vec![1e-4, 1e-3]).expect("model");
+        let mut est = OnlineEstimator::with_model(&config(0.0), 1, 1, model).expect("estimator");
+        let mut rng = common::Rng::new(8);
+        let mut last = None;
+        for _ in 0..20 {
+            last = Some(est.observe(0, 0.15 * rng.normal()).expect("observe"));
+        }
+        assert_eq!(last.and_then(|e| e.class), Some(1));
+        est.reset_env(0).expect("reset");
+        assert!(est.observe(0, 0.0).expect("observe").window_std.is_none());
+        assert!(est.reset_env(1).is_err());
+    }
+}

@@ -1,0 +1,206 @@
+//! The `analyze` and `online` commands end to end on a synthetic recording: flat envs with
+//! small pitch noise, rough envs with larger, written as a real telemetry CSV.
+
+use common::{AreaKind, TelemetryRow};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// 3 flat and 3 rough envs, 500 ticks each, rows interleaved by tick as the sim writes them.
+/// Pitch is an AR(1) walk (correlated like a driving robot's) with area-dependent noise.
+fn write_traces(dir: &Path) -> PathBuf {
+    let path = dir.join("traces.csv");
+    let mut w = csv::Writer::from_path(&path).expect("csv");
+    let mut rng = common::Rng::new(42);
+    let mut pitch = [0.0f64; 6];
+    for tick in 0..500u64 {
+        for env in 0..6u32 {
+            let area = if env < 3 {
+                AreaKind::Flat
+            } else {
+                AreaKind::Rough
+            };
+            let noise = if env < 3 { 0.012 } else { 0.05 };
+            let p = &mut pitch[env as usize];
+            *p = 0.6 * *p + noise * rng.normal();
+            let theta_z = 0.5 * *p + 0.01 * rng.normal();
+            w.serialize(TelemetryRow {
+                env,
+                tick,
+                area,
+                episode: tick / 100,
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                theta_x: p.asin(),
+                theta_y: 0.0,
+                theta_z,
+                sin_pitch: *p,
+                action_left: 1.0,
+                action_right: 1.0,
+                reward: 0.0,
+                terminated: false,
+                truncated: false,
+                success: false,
+                target_x: 0.0,
+                target_z: 0.0,
+            })
+            .expect("row");
+        }
+    }
+    w.flush().expect("flush");
+    path
+}
+
+fn finite_numbers(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .expect("array")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .inspect(|x| assert!(x.is_finite()))
+        .collect()
+}
+
+#[test]
+fn analyze_writes_results_table_and_four_figures() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let traces = write_traces(tmp.path());
+    let out = tmp.path().join("report");
+    let args = [
+        "estimator-proc",
+        "analyze",
+        traces.to_str().expect("utf8"),
+        "--windows",
+        "70,10,20,40",
+        "--out",
+        out.to_str().expect("utf8"),
+    ];
+    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(args).expect("args");
+    estimator_proc::run(cli).expect("analysis");
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
+            .expect("valid json");
+    assert_eq!(json["series"]["flat"], 3);
+    assert_eq!(json["warmup_ticks"], 100);
+    let windows = json["windows"].as_array().expect("windows");
+    let sizes: Vec<u64> = windows
+        .iter()
+        .map(|w| w["window"].as_u64().expect("window"))
+        .collect();
+    assert_eq!(sizes, vec![10, 20, 40, 70]);
+    for w in windows {
+        let size = w["window"].as_u64().expect("window") as usize;
+        let n = w["n"].as_u64().expect("n") as usize;
+        assert_eq!(
+            n,
+            6 * (400 - size + 1),
+            "SPEC S7: warm-up dropped, windows within series"
+        );
+        let means = finite_numbers(&w["means"]);
+        let weights = finite_numbers(&w["weights"]);
+        finite_numbers(&w["stds"]);
+        assert!(means[0] < means[1]);
+        assert!((weights.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+        let accuracy = w["accuracy"].as_f64().expect("accuracy");
+        assert!(accuracy > 0.95, "window {size}: accuracy {accuracy}");
+        let total: u64 = w["confusion"]
+            .as_array()
+            .expect("rows")
+            .iter()
+            .flat_map(|r| r.as_array().expect("row"))
+            .map(|c| c.as_u64().expect("count"))
+            .sum();
+        assert_eq!(total as usize, n);
+    }
+    let md = std::fs::read_to_string(out.join("results.md")).expect("md");
+    assert!(
+        md.contains("| window | flat mean (std) / rough mean (std) | accuracy |"),
+        "{md}"
+    );
+    assert!(md.contains("98.79 %"), "paper column beside ours");
+    assert!(!md.contains("NaN"));
+    for fig in [
+        "fig5_sin_roll.png",
+        "fig6_sin_pitch.png",
+        "fig7_std_distribution_w100.png",
+        "fig8_confusion_w10_w70.png",
+    ] {
+        let bytes = std::fs::read(out.join(fig)).unwrap_or_else(|e| panic!("{fig}: {e}"));
+        assert!(
+            bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000,
+            "{fig}"
+        );
+    }
+}
+
+#[test]
+fn online_replay_reports_accuracy_and_delay() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let traces = write_traces(tmp.path());
+    let out = tmp.path().join("online");
+    let args = [
+        "estimator-proc",
+        "online",
+        traces.to_str().expect("utf8"),
+        "--windows",
+        "10,40",
+        "--splice",
+        "--out",
+        out.to_str().expect("utf8"),
+    ];
+    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(args).expect("args");
+    estimator_proc::run(cli).expect("online");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("online.json")).expect("json"))
+            .expect("valid json");
+    for w in json["windows"].as_array().expect("windows") {
+        assert!(
+            w["filtered"]["accuracy"].as_f64().expect("accuracy") > 0.8,
+            "{w}"
+        );
+        assert_eq!(w["filtered"]["delay"]["changes"], 6, "{w}");
+        assert!(
+            w["filtered"]["delay"]["detected"]
+                .as_u64()
+                .expect("detected")
+                >= 5,
+            "{w}"
+        );
+    }
+    assert!(out.join("online.md").exists());
+}
+
+#[test]
+fn the_binary_exits_1_with_one_line_on_bad_input() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let bad = tmp.path().join("bad.csv");
+    std::fs::write(&bad, "env,tick,area\n0,0,flat\n").expect("write");
+    let run = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_estimator-proc"))
+            .args(args)
+            .output()
+            .expect("spawn")
+    };
+    let out_dir = tmp.path().join("o");
+    let o = run(&[
+        "analyze",
+        bad.to_str().expect("utf8"),
+        "--out",
+        out_dir.to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("missing column `episode`"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    let o = run(&["analyze", "x.csv", "--windows", "1", "--out", "o"]);
+    assert_eq!(o.status.code(), Some(1));
+    let o = run(&[
+        "analyze",
+        "/nonexistent.csv",
+        "--out",
+        out_dir.to_str().expect("utf8"),
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot read /nonexistent.csv"));
+    assert_eq!(run(&["--help"]).status.code(), Some(0));
+}
