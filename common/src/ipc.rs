@@ -358,12 +358,14 @@ impl<T: Debug + Copy + ZeroCopySend + 'static, H: Debug + Copy + ZeroCopySend + 
         &self.listener
     }
 
-    /// Sleeps until a writer signals or `timeout` passes; consumes the pending signals.
+    /// Sleeps until a writer signals or `timeout` passes; consumes the pending signals. A
+    /// signal (SIGINT, SIGTERM) ends the wait early without an error: callers check
+    /// [`Bus::stop_requested`].
     pub fn wait(&self, timeout: Duration) -> Result<(), IpcError> {
-        self.listener
-            .timed_wait(|_| {}, timeout)
-            .map(|_| ())
-            .map_err(|e| ipc_err(format!("wait on `{}`", self.name))(&e))
+        match self.listener.timed_wait(|_| {}, timeout) {
+            Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => Ok(()),
+            Err(e) => Err(ipc_err(format!("wait on `{}`", self.name))(&e)),
+        }
     }
 }
 
@@ -486,6 +488,14 @@ pub fn remove_run(run: &str) -> Result<usize, IpcError> {
     Ok(removed)
 }
 
+/// Asks every process of the run to shut down.
+pub fn request_shutdown(control: &Notifier<Svc>) -> Result<(), IpcError> {
+    control
+        .notify_with_custom_event_id(EventId::new(CONTROL_SHUTDOWN))
+        .map(|_| ())
+        .map_err(|e| ipc_err("request shutdown")(&e))
+}
+
 /// Whether a shutdown was requested on the control listener (drains it).
 pub fn shutdown_requested(control: &Listener<Svc>) -> bool {
     let mut stop = false;
@@ -504,6 +514,20 @@ mod tests {
         assert!(validate_run_id("").is_err());
         assert!(validate_run_id("a/b").is_err());
         assert!(validate_run_id(&"x".repeat(33)).is_err());
+    }
+
+    #[test]
+    fn a_shutdown_request_reaches_a_listener() {
+        let run = format!("c{}", std::process::id());
+        let bus = Bus::connect(&run, "test").expect("node");
+        // The launcher's notifier exists before the processes' listeners.
+        let notifier = bus.control_notifier().expect("notifier");
+        let listener = bus.control_listener().expect("listener");
+        assert!(!bus.stop_requested(&listener));
+        request_shutdown(&notifier).expect("notify");
+        assert!(bus.stop_requested(&listener));
+        drop((notifier, listener, bus));
+        remove_run(&run).expect("clean");
     }
 
     #[test]

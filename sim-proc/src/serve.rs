@@ -69,7 +69,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, "waiting for the first policy");
     let waited = Instant::now();
     while !take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)? {
-        if ipc::shutdown_requested(&control) {
+        if bus.stop_requested(&control) {
             return Ok(());
         }
         policy_rx.wait(POLL)?;
@@ -166,7 +166,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             tele_tx.send(header, &ticks)?;
             tick += 1;
             std::mem::swap(&mut obs, &mut next_obs);
-            if ipc::shutdown_requested(&control) {
+            if bus.stop_requested(&control) {
                 break 'run;
             }
             if cfg.run.mode == LearnMode::Async {
@@ -198,7 +198,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             // DESIGN §3: on-policy PPO; wait for the weights learned from this chunk.
             let since = Instant::now();
             while version <= chunk_version {
-                if ipc::shutdown_requested(&control) {
+                if bus.stop_requested(&control) {
                     break 'run;
                 }
                 policy_rx.wait(POLL)?;

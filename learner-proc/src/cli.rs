@@ -1,0 +1,55 @@
+//! The `learner-proc` command line. Exit codes: 0 success, 1 a problem with the input
+//! (bad arguments, missing or corrupt checkpoint), 2 anything unexpected.
+
+pub mod inspect;
+
+use std::ffi::OsString;
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+/// lavatube learner: PPO in burn, checkpoints.
+#[derive(Debug, Parser)]
+#[command(name = "learner-proc", version)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Print a checkpoint's counters and architecture.
+    Inspect(inspect::InspectArgs),
+    /// Join a run over shared memory: train on its rollouts, publish policies, checkpoint.
+    Serve(crate::serve::ServeArgs),
+}
+
+/// Tunes the allocator, parses `args`, initialises logging (stderr, `RUST_LOG`), runs the
+/// command and maps the outcome to an exit code.
+pub fn main(args: impl IntoIterator<Item = OsString>) -> ExitCode {
+    crate::tune_allocator();
+    let cli = match Cli::try_parse_from(args) {
+        Ok(cli) => cli,
+        Err(e) => {
+            let _ = e.print();
+            return if e.use_stderr() {
+                ExitCode::from(1)
+            } else {
+                ExitCode::SUCCESS
+            };
+        }
+    };
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_writer(std::io::stderr)
+        .with_env_filter(filter)
+        .try_init();
+    match crate::run(&cli.command, &mut std::io::stdout().lock()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("learner-proc: {e}");
+            ExitCode::from(if e.is_user_error() { 1 } else { 2 })
+        }
+    }
+}

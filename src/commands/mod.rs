@@ -1,0 +1,65 @@
+//! The subcommands, one file each.
+
+mod check_config;
+mod clean;
+mod run;
+mod status;
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+/// Exit code for user errors (bad config, bad arguments, missing files).
+pub const EXIT_USER: u8 = 1;
+/// Exit code for failures of the system itself (a child process failed, shared memory broke).
+pub const EXIT_FAILURE: u8 = 2;
+
+/// An error the user can fix: reported as one line with exit code 1.
+#[derive(Debug, thiserror::Error)]
+#[error("{0}")]
+pub struct UserError(pub String);
+
+/// 1 for user and config errors, 2 for the rest.
+pub fn exit_code(e: &anyhow::Error) -> u8 {
+    if e.downcast_ref::<common::ConfigError>().is_some() || e.downcast_ref::<UserError>().is_some()
+    {
+        EXIT_USER
+    } else {
+        EXIT_FAILURE
+    }
+}
+
+/// lavatube: train and evaluate terrain-adaptive driving policies for lava-tube robots.
+#[derive(Debug, clap::Parser)]
+#[command(name = "lavatube", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Debug, clap::Subcommand)]
+pub enum Command {
+    /// Train: start the simulator, learner and estimator of a new run and supervise them.
+    Run(run::RunArgs),
+    /// Parse and validate a config file, start nothing.
+    CheckConfig {
+        /// The config file (TOML).
+        config: PathBuf,
+    },
+    /// List runs with shared-memory resources and their processes.
+    Status,
+    /// Remove the shared-memory resources of runs whose processes are all gone.
+    Clean {
+        /// Only this run.
+        #[arg(long)]
+        run_id: Option<String>,
+    },
+}
+
+pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
+    match cli.command {
+        Command::Run(args) => run::run(args),
+        Command::CheckConfig { config } => check_config::check_config(&config),
+        Command::Status => status::status(),
+        Command::Clean { run_id } => clean::clean(run_id.as_deref()),
+    }
+}

@@ -1,0 +1,111 @@
+//! The launcher's command line against bad input: one line naming what is wrong, exit code 1,
+//! and nothing started (no run directory, no shared memory).
+
+use std::path::PathBuf;
+use std::process::Command;
+
+fn lavatube(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lavatube"))
+        .args(args)
+        .output()
+        .expect("launcher runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A config file in a fresh temp dir whose out-dir is inside it too.
+fn config(name: &str, body: &str) -> (PathBuf, PathBuf) {
+    let dir = std::env::temp_dir().join(format!("lavatube-cli-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let path = dir.join("bad.toml");
+    let out = dir.join("runs");
+    std::fs::write(
+        &path,
+        format!("[run]\nout-dir = \"{}\"\n{body}", out.display()),
+    )
+    .expect("write");
+    (path, out)
+}
+
+fn assert_refused(name: &str, body: &str, expected: &str) {
+    let (path, out) = config(name, body);
+    let run_id = format!("cli-{name}");
+    let (code, stdout, stderr) = lavatube(&[
+        "run",
+        "--config",
+        path.to_str().expect("utf-8"),
+        "--run-id",
+        &run_id,
+        "--quiet",
+    ]);
+    let expected = expected.replace("{path}", &path.display().to_string());
+    assert_eq!(
+        (code, stdout.as_str(), stderr.as_str()),
+        (1, "", format!("lavatube: {expected}\n").as_str())
+    );
+    assert!(!out.exists(), "no run directory is created");
+    assert!(
+        common::ipc::run_files(&run_id).is_empty(),
+        "no shared memory is created"
+    );
+}
+
+#[test]
+fn unknown_key_is_refused_with_its_position() {
+    assert_refused(
+        "unknown",
+        "[sim]\nwheels = 3\n",
+        "{path}:4:1: unknown field `wheels`, expected one of `flat-envs`, `rough-envs`, `threads`, `physics-dt`, `substeps`, `terrain`, `robot`, `task`",
+    );
+}
+
+#[test]
+fn out_of_range_value_names_the_field() {
+    assert_refused(
+        "range",
+        "[sim.robot]\nwheel-radius = 2.0\n",
+        "config field `sim.robot.wheel-radius` = 2.0: must be in [0.01, 0.2]",
+    );
+}
+
+#[test]
+fn wrong_type_names_its_position() {
+    assert_refused(
+        "type",
+        "[ppo]\nepochs = \"ten\"\n",
+        "{path}:4:10: invalid type: string \"ten\", expected usize",
+    );
+}
+
+#[test]
+fn missing_file_is_one_line() {
+    let (code, _, stderr) = lavatube(&["run", "--config", "/no/such/lavatube.toml", "--quiet"]);
+    assert_eq!(code, 1);
+    assert_eq!(
+        stderr,
+        "lavatube: cannot read config /no/such/lavatube.toml: No such file or directory (os error 2)\n"
+    );
+}
+
+#[test]
+fn check_config_accepts_the_shipped_configs() {
+    for f in ["configs/default.toml", "configs/smoke.toml"] {
+        let path = format!("{}/{f}", env!("CARGO_MANIFEST_DIR"));
+        let (code, stdout, stderr) = lavatube(&["check-config", &path]);
+        assert_eq!((code, stderr.as_str()), (0, ""), "{f}");
+        assert!(stdout.starts_with(&format!("{path}: ok (")), "{stdout}");
+    }
+}
+
+#[test]
+fn bad_run_id_is_refused_by_the_parser() {
+    let (code, _, stderr) = lavatube(&["run", "--run-id", "a/b"]);
+    assert_eq!(code, 1, "usage errors are user errors");
+    assert!(
+        stderr.contains("run id `a/b` must be 1–32 characters of A-Z a-z 0-9 -"),
+        "{stderr}"
+    );
+}
