@@ -6,6 +6,7 @@
 
 pub mod config;
 pub mod ipc;
+pub mod logging;
 pub mod policy;
 pub mod rng;
 pub mod rollout;

@@ -60,7 +60,7 @@ where
             };
         }
     };
-    init_logging();
+    common::logging::init();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -77,16 +77,4 @@ pub fn exit_code(e: &anyhow::Error) -> u8 {
             .is_some_and(EstimatorError::is_user_error)
     });
     if user { 1 } else { 2 }
-}
-
-/// Structured logs on stderr, `RUST_LOG` to filter (default `info`), prefixed by this
-/// process's name.
-fn init_logging() {
-    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
-        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info"));
-    let _ = tracing_subscriber::fmt()
-        .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .with_target(true)
-        .try_init();
 }

@@ -4,8 +4,9 @@
 //! (weight `[in][out]` row-major, then bias `[out]`), its state-independent log-std `[act]`,
 //! then the critic's dense layers (same convention, one output). The actor part is therefore
 //! the policy wire format minus the leading observation statistics, so publishing weights is
-//! a copy. Every forward pass builds its tensors from this vector: as gradient-tracked leaves
-//! on the autodiff device for a minibatch, as plain tensors on the inner device otherwise.
+//! a copy. Every forward pass builds its tensors from this vector (one matrix per dense layer,
+//! bias folded in: [`NetShape::tensors`]): gradient-tracked leaves on the autodiff device for
+//! a minibatch, plain tensors on the inner device otherwise.
 //!
 //! Both networks are MLPs with tanh hidden layers (SPEC S6, interpretation: ML-Agents'
 //! 2 × 128) and a linear output. The tanh is this module's own ([`tanh`]): burn's is a scalar
@@ -32,7 +33,7 @@ pub enum Role {
 }
 
 /// One parameter tensor's place in the flat vector: a `[rows, cols]` block at `offset`
-/// (biases and the log-std are `[1, n]` rows, so they broadcast over the batch).
+/// (biases and the log-std are `[1, n]` rows).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Slot {
     pub offset: usize,

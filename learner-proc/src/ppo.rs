@@ -487,6 +487,7 @@ impl Learner {
 
         let backward = loss.backward();
         self.shape.gradients(&net, &backward, grads)?;
+        let grad_norm = clip_global_norm(grads, self.ppo.max_grad_norm as f32);
         let stats = MinibatchStats {
             pg_loss: first(read(pg_loss, "policy loss")?),
             v_loss: first(read(v_loss, "value loss")?),
@@ -494,7 +495,7 @@ impl Learner {
             old_approx_kl,
             approx_kl,
             clipfrac,
-            grad_norm: f64::from(clip_global_norm(grads, self.ppo.max_grad_norm as f32)),
+            grad_norm: f64::from(grad_norm),
         };
         if !(stats.pg_loss.is_finite() && stats.v_loss.is_finite() && stats.grad_norm.is_finite()) {
             return Err(LearnerError::NonFinite {

@@ -4,9 +4,9 @@
 //! policy learned from it (DESIGN §3); in async mode it never waits.
 
 use crate::Batch;
+use crate::actor::Actor;
 use crate::controllers::PolicyController;
-use crate::env::{SharedTerrain, StepInfo};
-use crate::task::Ending;
+use crate::env::SharedTerrain;
 use crate::terrain::Terrain;
 use anyhow::Context;
 use common::config::LearnMode;
@@ -81,91 +81,35 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     }
     tracing::info!(version, "first policy received");
 
-    let mut obs = vec![[0.0f32; OBS_DIM]; n];
-    let mut next_obs = obs.clone();
-    let mut actions = vec![[0.0f32; ACT_DIM]; n];
-    let mut logprobs = vec![0.0f32; n];
-    let mut infos = vec![StepInfo::default(); n];
+    let mut actor = Actor::new(&batch);
     let mut classes = vec![wire::CLASS_UNKNOWN; n];
     let mut ticks = vec![EnvTick::default(); n];
     let mut chunk = Vec::with_capacity(t_steps * n + n);
     let (mut env_steps, mut chunk_id, mut tick) = (0u64, 0u64, 0u64);
-    let (mut episodes, mut successes) = (0u64, 0u64);
-    batch.observe(&mut obs);
     let started = Instant::now();
     'run: while env_steps < cfg.run.total_steps {
         let chunk_version = version;
         chunk.clear();
         for _ in 0..t_steps {
             let c = ctrl.as_mut().context("no policy")?;
-            for i in 0..n {
-                (actions[i], logprobs[i]) = c.sample(&obs[i]);
-            }
-            batch.step(&actions, &mut infos, &mut next_obs);
+            actor.tick(&mut batch, c, version, &classes, &mut chunk);
             if let Some(est) = terrain_rx.latest()? {
                 for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
                     classes[e.env as usize] = e.class;
                 }
             }
-            for (i, env) in batch.envs.iter().enumerate() {
-                let info = &infos[i];
-                let end = info.ending;
-                let p = env.pose();
-                episodes += u64::from(end.is_some());
-                successes += u64::from(end == Some(Ending::Success));
-                chunk.push(Transition {
-                    obs: obs[i],
-                    action: actions[i],
-                    final_obs: info.final_obs,
-                    logprob: logprobs[i],
-                    reward: info.reward as f32,
-                    policy_version: version,
-                    env: i as u32,
-                    terminated: u8::from(end.is_some_and(|e| e.terminated())),
-                    truncated: u8::from(end.is_some_and(|e| e.truncated())),
-                    success: u8::from(end == Some(Ending::Success)),
-                    area: env.area.code(),
-                    estimated_class: classes[i],
-                    ..Transition::default()
-                });
-                let events = end.map_or(0, |e| {
-                    (if e.terminated() {
-                        wire::EVENT_TERMINATED
-                    } else {
-                        wire::EVENT_TRUNCATED
-                    }) | if e == Ending::Success {
-                        wire::EVENT_SUCCESS
-                    } else {
-                        0
-                    } | if e == Ending::Fault {
-                        wire::EVENT_FAULT
-                    } else {
-                        0
-                    }
-                });
-                ticks[i] = EnvTick {
-                    env: i as u32,
-                    area: env.area.code(),
-                    events,
-                    pos: p.pos.map(|v| v as f32),
-                    euler: p.euler.map(|v| v as f32),
-                    sin_pitch: p.euler[0].sin() as f32,
-                    reward: info.reward as f32,
-                    ..EnvTick::default()
-                };
-            }
+            actor.env_ticks(&batch, &mut ticks);
             env_steps += n as u64;
             let header = TickHeader {
                 tick,
                 env_steps,
                 policy_version: version,
                 envs: n as u32,
-                episodes,
-                successes,
+                episodes: actor.episodes,
+                successes: actor.successes,
             };
             tele_tx.send(header, &ticks)?;
             tick += 1;
-            std::mem::swap(&mut obs, &mut next_obs);
             if bus.stop_requested(&control) {
                 break 'run;
             }
@@ -173,11 +117,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
                 take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)?;
             }
         }
-        chunk.extend(obs.iter().enumerate().map(|(i, o)| Transition {
-            obs: *o,
-            env: i as u32,
-            ..Transition::default()
-        }));
+        actor.bootstrap(&mut chunk);
         let header = RolloutHeader {
             chunk: chunk_id,
             env_steps,
@@ -218,8 +158,8 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(
         env_steps,
-        episodes,
-        successes,
+        episodes = actor.episodes,
+        successes = actor.successes,
         policy_version = version,
         env_steps_per_s = env_steps as f64 / secs,
         "sim done"

@@ -1,0 +1,122 @@
+//! Acting and recording: one decision step of every env under a policy, appended to a rollout
+//! chunk as [`Transition`]s. Shared by `serve` and by in-process training loops, so both
+//! produce the same transitions from the same seed.
+
+use crate::Batch;
+use crate::controllers::PolicyController;
+use crate::env::StepInfo;
+use crate::task::Ending;
+use common::wire::{self, EnvTick};
+use common::{ACT_DIM, OBS_DIM, Transition};
+
+/// Per-env buffers of the acting loop.
+pub struct Actor {
+    /// Each env's current observation.
+    pub obs: Vec<[f32; OBS_DIM]>,
+    next_obs: Vec<[f32; OBS_DIM]>,
+    actions: Vec<[f32; ACT_DIM]>,
+    logprobs: Vec<f32>,
+    /// What the last step produced, per env.
+    pub infos: Vec<StepInfo>,
+    pub episodes: u64,
+    pub successes: u64,
+}
+
+impl Actor {
+    pub fn new(batch: &Batch) -> Self {
+        let n = batch.len();
+        let mut obs = vec![[0.0f32; OBS_DIM]; n];
+        batch.observe(&mut obs);
+        Self {
+            next_obs: obs.clone(),
+            obs,
+            actions: vec![[0.0; ACT_DIM]; n],
+            logprobs: vec![0.0; n],
+            infos: vec![StepInfo::default(); n],
+            episodes: 0,
+            successes: 0,
+        }
+    }
+
+    /// Samples every env's action, steps the batch and appends one transition per env to
+    /// `chunk`. `classes` holds the estimator's current class per env.
+    pub fn tick(
+        &mut self,
+        batch: &mut Batch,
+        ctrl: &mut PolicyController,
+        version: u32,
+        classes: &[u8],
+        chunk: &mut Vec<Transition>,
+    ) {
+        for (i, o) in self.obs.iter().enumerate() {
+            (self.actions[i], self.logprobs[i]) = ctrl.sample(o);
+        }
+        batch.step(&self.actions, &mut self.infos, &mut self.next_obs);
+        for (i, env) in batch.envs.iter().enumerate() {
+            let info = &self.infos[i];
+            let end = info.ending;
+            self.episodes += u64::from(end.is_some());
+            self.successes += u64::from(end == Some(Ending::Success));
+            chunk.push(Transition {
+                obs: self.obs[i],
+                action: self.actions[i],
+                final_obs: info.final_obs,
+                logprob: self.logprobs[i],
+                reward: info.reward as f32,
+                policy_version: version,
+                env: i as u32,
+                terminated: u8::from(end.is_some_and(|e| e.terminated())),
+                truncated: u8::from(end.is_some_and(|e| e.truncated())),
+                success: u8::from(end == Some(Ending::Success)),
+                area: env.area.code(),
+                estimated_class: classes.get(i).copied().unwrap_or(wire::CLASS_UNKNOWN),
+                ..Transition::default()
+            });
+        }
+        std::mem::swap(&mut self.obs, &mut self.next_obs);
+    }
+
+    /// Appends each env's bootstrap observation (the chunk's tail, DESIGN §2).
+    pub fn bootstrap(&self, chunk: &mut Vec<Transition>) {
+        chunk.extend(self.obs.iter().enumerate().map(|(i, o)| Transition {
+            obs: *o,
+            env: i as u32,
+            ..Transition::default()
+        }));
+    }
+
+    /// The telemetry of the last step, one entry per env.
+    pub fn env_ticks(&self, batch: &Batch, out: &mut [EnvTick]) {
+        for ((t, env), info) in out.iter_mut().zip(&batch.envs).zip(&self.infos) {
+            let p = env.pose();
+            let events = info.ending.map_or(0, |e| {
+                let kind = if e.terminated() {
+                    wire::EVENT_TERMINATED
+                } else {
+                    wire::EVENT_TRUNCATED
+                };
+                let success = if e == Ending::Success {
+                    wire::EVENT_SUCCESS
+                } else {
+                    0
+                };
+                let fault = if e == Ending::Fault {
+                    wire::EVENT_FAULT
+                } else {
+                    0
+                };
+                kind | success | fault
+            });
+            *t = EnvTick {
+                env: env.id as u32,
+                area: env.area.code(),
+                events,
+                pos: p.pos.map(|v| v as f32),
+                euler: p.euler.map(|v| v as f32),
+                sin_pitch: p.euler[0].sin() as f32,
+                reward: info.reward as f32,
+                ..EnvTick::default()
+            };
+        }
+    }
+}

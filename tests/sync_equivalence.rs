@@ -1,0 +1,93 @@
+//! DESIGN §3: in sync mode the three-process runtime is classic on-policy PPO. The same seed
+//! gives bit-identical weights after k updates through shared memory as through a loop that
+//! runs the simulator and learner libraries in one process.
+
+use common::{ACT_DIM, Config, OBS_DIM, Policy, PolicyLayout};
+use learner_proc::{Learner, Rollout};
+use sim_proc::actor::Actor;
+use sim_proc::controllers::PolicyController;
+use sim_proc::terrain::Terrain;
+use sim_proc::{Batch, SharedTerrain};
+use std::path::Path;
+use std::process::Command;
+
+/// The in-process loop: act for T steps, update, hand the new weights to the actor.
+fn train_in_process(cfg: &Config) -> Learner {
+    let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
+    let mut learner = Learner::new(cfg, layout.clone(), cfg.run.seed).expect("learner");
+    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain).expect("terrain"));
+    let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
+    let policy =
+        Policy::new(layout, learner.policy_weights(), cfg.ppo.obs_clip as f32).expect("policy");
+    let mut ctrl = PolicyController::new(policy, true, cfg.run.seed);
+    let mut actor = Actor::new(&batch);
+    let (n, t) = (batch.len(), cfg.ppo.rollout_steps(batch.len()));
+    let mut chunk = Vec::new();
+    let mut env_steps = 0;
+    while env_steps < cfg.run.total_steps {
+        chunk.clear();
+        for _ in 0..t {
+            actor.tick(
+                &mut batch,
+                &mut ctrl,
+                learner.policy_version(),
+                &[],
+                &mut chunk,
+            );
+        }
+        env_steps += (t * n) as u64;
+        actor.bootstrap(&mut chunk);
+        let (transitions, boot) = chunk.split_at(t * n);
+        let bootstrap_obs: Vec<[f32; OBS_DIM]> = boot.iter().map(|b| b.obs).collect();
+        learner
+            .update(&Rollout {
+                transitions,
+                bootstrap_obs: &bootstrap_obs,
+                episodes: &[],
+            })
+            .expect("update");
+        ctrl.policy
+            .set_weights(&learner.policy_weights())
+            .expect("same layout");
+    }
+    learner
+}
+
+#[test]
+fn sync_runtime_matches_the_in_process_loop_bit_for_bit() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let cfg = Config::load(&root.join("configs/smoke.toml")).expect("smoke config");
+    let run_id = format!("sync-{}", std::process::id());
+    let status = Command::new(env!("CARGO_BIN_EXE_lavatube"))
+        .args([
+            "run",
+            "--config",
+            "configs/smoke.toml",
+            "--run-id",
+            &run_id,
+            "--quiet",
+        ])
+        .current_dir(root)
+        .output()
+        .expect("launcher runs");
+    assert!(
+        status.status.success(),
+        "{}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let dir = root
+        .join("target/e2e-runs")
+        .join(&run_id)
+        .join("checkpoints");
+    let (runtime, _) = Learner::resume(&cfg, &dir).expect("the runtime's last checkpoint");
+
+    let local = train_in_process(&cfg);
+    assert_eq!(runtime.counters(), local.counters());
+    assert!(runtime.counters().update >= 3);
+    let (a, b) = (runtime.policy_weights(), local.policy_weights());
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+        "weights differ after {} updates",
+        local.counters().update
+    );
+}
