@@ -172,6 +172,24 @@ impl Env {
         ]
     }
 
+    /// Runs the physics substeps. Returns false when the state went non-finite: rapier then
+    /// quarantines the bodies, or (for a multibody) its solver panics on the degenerate
+    /// system; either way only this env's world is lost, and the caller respawns it.
+    fn physics_substeps(&mut self) -> bool {
+        let world = &mut self.world;
+        let substeps = self.cfg.substeps;
+        let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            for _ in 0..substeps {
+                world.step();
+                if !world.quarantine().is_empty() {
+                    return false;
+                }
+            }
+            true
+        }));
+        stepped.unwrap_or(false)
+    }
+
     /// One decision step: clip the action (SPEC S2), run the physics substeps, apply the
     /// episode rules, and start the next episode (respawning if the rules say so).
     pub fn step(&mut self, action: [f32; 2]) -> StepInfo {
@@ -184,12 +202,10 @@ impl Env {
             }
         });
         robot::set_wheel_speeds(&mut self.world, &self.robot, &self.cfg.robot, self.action);
-        for _ in 0..self.cfg.substeps {
-            self.world.step();
-        }
+        let healthy = self.physics_substeps();
         self.tick += 1;
         let p = self.pose();
-        let result = if p.is_finite() {
+        let result = if healthy && p.is_finite() {
             let tip = self.cfg.task.tip_limit_deg.to_radians();
             let tipped = p.euler[0].abs() > tip || p.euler[2].abs() > tip;
             let left = !self
@@ -210,7 +226,7 @@ impl Env {
                 ending: Some(Ending::Fault),
             }
         };
-        let final_obs = if p.is_finite() {
+        let final_obs = if healthy && p.is_finite() {
             self.observe()
         } else {
             [0.0; OBS_DIM]
@@ -286,4 +302,40 @@ pub fn build_world(
     );
     let robot = robot::build(&mut world, r, pose);
     (world, robot)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::terrain::Terrain;
+
+    #[test]
+    fn non_finite_physics_ends_the_episode_and_respawns_only_that_env() {
+        let cfg = SimConfig {
+            flat_envs: 2,
+            ..SimConfig::default()
+        };
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut bad = Env::new(0, &cfg, &terrain, 1);
+        let mut good = Env::new(1, &cfg, &terrain, 1);
+        let episode = bad.episode_index;
+        // Poison the chassis: a NaN velocity makes the next physics step non-finite.
+        let chassis = bad.robot.chassis;
+        bad.world.bodies[chassis].set_linvel(Vector::splat(f32::NAN), true);
+        let info = bad.step([1.0, 1.0]);
+        assert_eq!(info.ending, Some(Ending::Fault));
+        assert!(
+            info.ending.is_some_and(|e| e.truncated()),
+            "a fault truncates, it does not terminate"
+        );
+        assert_eq!((info.faults, info.reward), (1, 0.0));
+        assert_eq!(bad.episode_index, episode + 1);
+        // Respawned inside its area with a finite pose, and it keeps running.
+        let p = bad.pose();
+        assert!(p.is_finite() && cfg.terrain.flat_area.contains(p.pos[0], p.pos[2], 0.0));
+        assert_eq!(bad.step([1.0, 1.0]).faults, 1);
+        assert!(bad.observe().iter().all(|v| v.is_finite()));
+        // The other env never noticed.
+        assert_eq!(good.step([1.0, 1.0]).faults, 0);
+    }
 }
