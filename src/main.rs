@@ -8,21 +8,12 @@
 mod commands;
 mod supervise;
 
-use clap::Parser;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {
-    let cli = match commands::Cli::try_parse() {
+    let cli: commands::Cli = match common::cli::parse(std::env::args_os()) {
         Ok(cli) => cli,
-        Err(e) => {
-            // Usage errors are user errors (1); --help and --version are not errors.
-            let _ = e.print();
-            return if e.use_stderr() {
-                ExitCode::from(commands::EXIT_USER)
-            } else {
-                ExitCode::SUCCESS
-            };
-        }
+        Err(code) => return code,
     };
     match commands::dispatch(cli) {
         Ok(code) => code,

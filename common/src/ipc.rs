@@ -9,6 +9,7 @@ use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
 use iceoryx2::port::publisher::Publisher;
 use iceoryx2::port::subscriber::Subscriber;
+use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
 use std::fmt::Debug;
@@ -303,6 +304,16 @@ where
     T: Debug + Copy + Default + ZeroCopySend + 'static,
     H: Debug + Copy + Default + ZeroCopySend + 'static,
 {
+    /// Connects subscribers that arrived since the last send and hands them the history.
+    /// iceoryx2 does this only when the publisher acts, so a publisher that has sent once and
+    /// then waits (a learner before its first rollout) must call this while idle, or a late
+    /// subscriber never sees the message it is waiting for.
+    pub fn update_connections(&self) -> Result<(), IpcError> {
+        self.publisher
+            .update_connections()
+            .map_err(|e| ipc_err(format!("update connections of `{}`", self.name))(&e))
+    }
+
     /// Copies `data` into a loaned shared-memory sample, sends it and wakes the readers.
     pub fn send(&self, header: H, data: &[T]) -> Result<(), IpcError> {
         let mut sample = self
@@ -527,6 +538,33 @@ mod tests {
         request_shutdown(&notifier).expect("notify");
         assert!(bus.stop_requested(&listener));
         drop((notifier, listener, bus));
+        remove_run(&run).expect("clean");
+    }
+
+    #[test]
+    fn a_late_subscriber_gets_the_last_policy_once_the_publisher_updates() {
+        let run = format!("h{}", std::process::id());
+        let bus = Bus::connect(&run, "test").expect("node");
+        let tx: Sender<f32, crate::wire::PolicyHeader> =
+            bus.sender(&POLICY, Some("general"), 3).expect("sender");
+        let header = crate::wire::PolicyHeader {
+            version: 4,
+            ..Default::default()
+        };
+        tx.send(header, &[1.0, 2.0, 3.0]).expect("send");
+        // The sim connects after the learner published, then the learner idles.
+        let rx: Receiver<f32, crate::wire::PolicyHeader> =
+            bus.receiver(&POLICY, Some("general")).expect("receiver");
+        tx.update_connections().expect("update");
+        let s = rx
+            .latest()
+            .expect("receive")
+            .expect("history delivers the last policy");
+        assert_eq!(
+            (s.user_header().version, s.payload()),
+            (4, &[1.0f32, 2.0, 3.0][..])
+        );
+        drop((s, rx, tx, bus));
         remove_run(&run).expect("clean");
     }
 

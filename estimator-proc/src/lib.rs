@@ -48,17 +48,9 @@ where
     I: IntoIterator<Item = T>,
     T: Into<std::ffi::OsString> + Clone,
 {
-    use clap::Parser as _;
-    let cli = match Cli::try_parse_from(args) {
+    let cli: Cli = match common::cli::parse(args.into_iter().map(Into::into)) {
         Ok(cli) => cli,
-        Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
-                ExitCode::from(1)
-            } else {
-                ExitCode::SUCCESS
-            };
-        }
+        Err(code) => return code,
     };
     common::logging::init();
     match run(cli) {

@@ -28,16 +28,9 @@ pub enum Command {
 /// command and maps the outcome to an exit code.
 pub fn main(args: impl IntoIterator<Item = OsString>) -> ExitCode {
     crate::tune_allocator();
-    let cli = match Cli::try_parse_from(args) {
+    let cli: Cli = match common::cli::parse(args) {
         Ok(cli) => cli,
-        Err(e) => {
-            let _ = e.print();
-            return if e.use_stderr() {
-                ExitCode::from(1)
-            } else {
-                ExitCode::SUCCESS
-            };
-        }
+        Err(code) => return code,
     };
     common::logging::init();
     match crate::run(&cli.command, &mut std::io::stdout().lock()) {

@@ -13,22 +13,14 @@ use std::time::Duration;
 /// Arguments of `serve` (the launcher passes them).
 #[derive(Debug, clap::Args)]
 pub struct ServeArgs {
-    /// The run's resolved config (TOML).
-    #[arg(long)]
-    pub config: PathBuf,
-    /// The run to join over shared memory.
-    #[arg(long, value_parser = parse_run_id)]
-    pub run_id: String,
+    #[command(flatten)]
+    pub join: common::cli::JoinArgs,
     /// The run directory: metrics.csv and checkpoints/ go here.
     #[arg(long)]
     pub out: PathBuf,
     /// Start from this checkpoint instead of the run's newest.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
-}
-
-fn parse_run_id(s: &str) -> Result<String, String> {
-    ipc::validate_run_id(s).map(|_| s.to_string())
 }
 
 /// Per-env running episode sums, so episode outcomes can be reported from transitions alone.
@@ -101,12 +93,12 @@ fn start(cfg: &Config, args: &ServeArgs, ckpt_dir: &Path) -> Result<Learner, Lea
 }
 
 pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
-    let cfg = Config::load(&args.config)?;
+    let cfg = Config::load(&args.join.config)?;
     let ckpt_dir = args.out.join("checkpoints");
     std::fs::create_dir_all(&ckpt_dir).map_err(LearnerError::io("create", &ckpt_dir))?;
     let mut learner = start(&cfg, args, &ckpt_dir)?;
     let mut log = MetricsLog::open(&args.out)?;
-    let bus = Bus::connect(&args.run_id, "learner")?;
+    let bus = Bus::connect(&args.join.run_id, "learner")?;
     let control = bus.control_listener()?;
     let rollout_rx = bus.receiver::<Transition, RolloutHeader>(&ipc::ROLLOUT, None)?;
     let policy_tx =
@@ -122,6 +114,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     let (mut next_chunk, mut missed) = (None::<u64>, 0u64);
     let mut done = false;
     while !done && !bus.stop_requested(&control) {
+        policy_tx.update_connections()?;
         rollout_rx.wait(Duration::from_millis(100))?;
         while let Some(sample) = rollout_rx.try_recv()? {
             let h = *sample.user_header();

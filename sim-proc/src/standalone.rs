@@ -51,12 +51,8 @@ pub struct Args {
     pub seed: Option<u64>,
     /// Join run ID over shared memory (as the launcher starts it) instead of running alone:
     /// act with the learner's policy and publish rollouts and telemetry.
-    #[arg(long, value_parser = parse_run_id, conflicts_with_all = ["controller", "weights", "steps", "telemetry"])]
+    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "steps", "telemetry"])]
     pub run_id: Option<String>,
-}
-
-fn parse_run_id(s: &str) -> Result<String, String> {
-    common::ipc::validate_run_id(s).map(|_| s.to_string())
 }
 
 /// Episode outcomes over a run.

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// Exit code for user errors (bad config, bad arguments, missing files).
-pub const EXIT_USER: u8 = 1;
+pub use common::cli::EXIT_USER;
 /// Exit code for failures of the system itself (a child process failed, shared memory broke).
 pub const EXIT_FAILURE: u8 = 2;
 

@@ -22,15 +22,11 @@ pub struct RunArgs {
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Run id: names the run directory and prefixes every shared-memory resource. Default: a new one.
-    #[arg(long, value_parser = parse_run_id)]
+    #[arg(long, value_parser = common::cli::parse_run_id)]
     pub run_id: Option<String>,
     /// No progress bar (for logs and CI).
     #[arg(long)]
     pub quiet: bool,
-}
-
-fn parse_run_id(s: &str) -> Result<String, String> {
-    ipc::validate_run_id(s).map(|_| s.to_string())
 }
 
 /// A fresh run id: seconds since the epoch and the launcher's pid, in base 36-ish hex.

@@ -25,7 +25,7 @@ pub enum Command {
     /// and the delay to detect a terrain change.
     Online(online::OnlineArgs),
     /// Join a run over shared memory: classify every env's terrain online and publish it.
-    Serve(serve::ServeArgs),
+    Serve(common::cli::JoinArgs),
 }
 
 /// Arguments shared by the subcommands that read a recording.

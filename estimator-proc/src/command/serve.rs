@@ -5,25 +5,9 @@
 use crate::OnlineEstimator;
 use common::ipc::{self, Bus};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
-use std::path::PathBuf;
 use std::time::Duration;
 
-/// Arguments of `serve` (the launcher passes them).
-#[derive(Debug, clap::Args)]
-pub struct ServeArgs {
-    /// The run's resolved config (TOML).
-    #[arg(long)]
-    pub config: PathBuf,
-    /// The run to join over shared memory.
-    #[arg(long, value_parser = parse_run_id)]
-    pub run_id: String,
-}
-
-fn parse_run_id(s: &str) -> Result<String, String> {
-    ipc::validate_run_id(s).map(|_| s.to_string())
-}
-
-pub fn execute(args: &ServeArgs) -> anyhow::Result<()> {
+pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let cfg = super::load_config(Some(&args.config))?;
     let n = cfg.sim.num_envs();
     let bus = Bus::connect(&args.run_id, "estimator")?;
@@ -39,6 +23,7 @@ pub fn execute(args: &ServeArgs) -> anyhow::Result<()> {
         "estimator serving"
     );
     while !bus.stop_requested(&control) {
+        tx.update_connections()?;
         rx.wait(Duration::from_millis(100))?;
         while let Some(sample) = rx.try_recv()? {
             let h = *sample.user_header();
