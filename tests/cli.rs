@@ -109,3 +109,16 @@ fn bad_run_id_is_refused_by_the_parser() {
         "{stderr}"
     );
 }
+
+#[test]
+fn analyze_runs_the_estimators_analysis() {
+    let dir = std::env::temp_dir().join(format!("lavatube-analyze-{}", std::process::id()));
+    let (code, _, stderr) = lavatube(&[
+        "analyze",
+        "/no/such/traces.csv",
+        "--out",
+        dir.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(code, 1, "a missing input is a user error: {stderr}");
+    assert!(stderr.contains("/no/such/traces.csv"), "{stderr}");
+}

@@ -1,5 +1,6 @@
 //! The subcommands, one file each.
 
+mod analyze;
 mod check_config;
 mod clean;
 mod run;
@@ -40,6 +41,8 @@ pub struct Cli {
 pub enum Command {
     /// Train: start the simulator, learner and estimator of a new run and supervise them.
     Run(run::RunArgs),
+    /// The paper's terrain analysis (SPEC S7) on recorded telemetry: Table 3 and Figs. 5–8.
+    Analyze(analyze::AnalyzeArgs),
     /// Parse and validate a config file, start nothing.
     CheckConfig {
         /// The config file (TOML).
@@ -58,6 +61,7 @@ pub enum Command {
 pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Run(args) => run::run(args),
+        Command::Analyze(args) => analyze::analyze(args),
         Command::CheckConfig { config } => check_config::check_config(&config),
         Command::Status => status::status(),
         Command::Clean { run_id } => clean::clean(run_id.as_deref()),
