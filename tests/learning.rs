@@ -2,8 +2,7 @@
 //! on the flat area. Slow in a debug build, so it is ignored by default; run it with
 //! `cargo test --release --test learning -- --ignored`.
 
-use std::path::Path;
-use std::process::Command;
+mod support;
 
 /// Mean of the `success_rate` column over metrics rows `rows` (rows without episodes skipped).
 fn mean_success(rows: &[csv::StringRecord], col: usize) -> f64 {
@@ -17,25 +16,9 @@ fn mean_success(rows: &[csv::StringRecord], col: usize) -> f64 {
 #[test]
 #[ignore = "about 2 minutes in release; see the module docs"]
 fn flat_success_rises_from_random_to_80_percent_within_250k_steps() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = support::root();
     let run_id = format!("learn-{}", std::process::id());
-    let out = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .args([
-            "run",
-            "--config",
-            "configs/default.toml",
-            "--run-id",
-            &run_id,
-            "--quiet",
-        ])
-        .current_dir(root)
-        .output()
-        .expect("launcher runs");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    support::lavatube_run("configs/default.toml", &run_id);
     let mut reader = csv::Reader::from_path(root.join("runs").join(&run_id).join("metrics.csv"))
         .expect("metrics.csv");
     let col = reader

@@ -8,8 +8,8 @@ use sim_proc::actor::Actor;
 use sim_proc::controllers::PolicyController;
 use sim_proc::terrain::Terrain;
 use sim_proc::{Batch, SharedTerrain};
-use std::path::Path;
-use std::process::Command;
+
+mod support;
 
 /// The in-process loop: act for T steps, update, hand the new weights to the actor.
 fn train_in_process(cfg: &Config) -> Learner {
@@ -55,26 +55,10 @@ fn train_in_process(cfg: &Config) -> Learner {
 
 #[test]
 fn sync_runtime_matches_the_in_process_loop_bit_for_bit() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let root = support::root();
     let cfg = Config::load(&root.join("configs/smoke.toml")).expect("smoke config");
     let run_id = format!("sync-{}", std::process::id());
-    let status = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .args([
-            "run",
-            "--config",
-            "configs/smoke.toml",
-            "--run-id",
-            &run_id,
-            "--quiet",
-        ])
-        .current_dir(root)
-        .output()
-        .expect("launcher runs");
-    assert!(
-        status.status.success(),
-        "{}",
-        String::from_utf8_lossy(&status.stderr)
-    );
+    support::lavatube_run("configs/smoke.toml", &run_id);
     let dir = root
         .join("target/e2e-runs")
         .join(&run_id)

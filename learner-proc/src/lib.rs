@@ -12,37 +12,8 @@
 //!   checkpoint after update k produces bit-identical weights at update k + 1.
 //! - A checkpoint file is whole or refused; saving never destroys the previous good one.
 //!
-//! The runtime's loop, one rollout chunk at a time:
-//!
-//! ```no_run
-//! # use common::{config::Config, policy::PolicyLayout, Transition, OBS_DIM};
-//! # use learner_proc::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout};
-//! # fn chunk(_v: u32) -> (Vec<Transition>, Vec<[f32; OBS_DIM]>, Vec<EpisodeOutcome>) { todo!() }
-//! # fn publish(_version: u32, _weights: &[f32]) {}
-//! # fn main() -> Result<(), LearnerError> {
-//! # let (cfg, layout, seed) = (Config::default(), PolicyLayout::new(10, &[128, 128], 2), 1);
-//! # let (run_dir, ckpt_dir) = (std::path::Path::new("run"), std::path::Path::new("run/ckpt"));
-//! let mut learner = match Learner::resume(&cfg, ckpt_dir) {
-//!     Ok((learner, _path)) => learner,
-//!     Err(LearnerError::NoCheckpoint { .. }) => Learner::new(&cfg, layout, seed)?,
-//!     Err(e) => return Err(e),
-//! };
-//! let mut log = MetricsLog::open(run_dir)?;
-//! loop {
-//!     let (transitions, bootstrap_obs, episodes) = chunk(learner.policy_version());
-//!     let metrics = learner.update(&Rollout {
-//!         transitions: &transitions,
-//!         bootstrap_obs: &bootstrap_obs,
-//!         episodes: &episodes,
-//!     })?;
-//!     log.append(&metrics)?;
-//!     publish(learner.policy_version(), &learner.policy_weights());
-//!     if learner.checkpoint_due() {
-//!         learner.save_checkpoint(ckpt_dir)?;
-//!     }
-//! }
-//! # }
-//! ```
+//! The runtime's loop, one rollout chunk at a time, is [`serve::serve`]: resume or start,
+//! update, append a metrics row, publish the weights, checkpoint when due.
 
 pub mod adam;
 pub mod checkpoint;

@@ -148,7 +148,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
             log.append(&m)?;
             publish(&policy_tx, &learner, cfg.ppo.obs_clip)?;
             let c = learner.counters();
-            if c.update % cfg.ppo.checkpoint_every as u64 == 0 {
+            if learner.checkpoint_due() {
                 learner.save_checkpoint(&ckpt_dir)?;
             }
             tracing::info!(
