@@ -1,53 +1,14 @@
 //! End to end: `lavatube run` on configs/smoke.toml as a real process tree — three OS
 //! processes talking only through iceoryx2 — checked from the outside.
 
-use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
-
-/// Kills the launcher if it has not finished in time, instead of timing the test.
-const WATCHDOG: Duration = Duration::from_secs(600);
-
-fn run_smoke(run_id: &str) -> (i32, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .args([
-            "run",
-            "--config",
-            "configs/smoke.toml",
-            "--run-id",
-            run_id,
-            "--quiet",
-        ])
-        .current_dir(env!("CARGO_MANIFEST_DIR"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .expect("launcher starts");
-    let started = Instant::now();
-    while child.try_wait().expect("poll").is_none() {
-        if started.elapsed() > WATCHDOG {
-            child.kill().expect("kill");
-            panic!("lavatube run did not finish within {WATCHDOG:?}");
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    }
-    let out = child.wait_with_output().expect("output");
-    let text = format!(
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
-    (out.status.code().unwrap_or(-1), text)
-}
+mod support;
 
 #[test]
 fn smoke_run_trains_through_shared_memory_and_cleans_up() {
     let run_id = format!("e2e-{}", std::process::id());
-    let (code, output) = run_smoke(&run_id);
+    let (code, output) = support::lavatube_run("configs/smoke.toml", &run_id);
     assert_eq!(code, 0, "launcher output:\n{output}");
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("target/e2e-runs")
-        .join(&run_id);
+    let dir = support::root().join("target/e2e-runs").join(&run_id);
     let summary: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("summary.json")).expect("summary.json"),
     )

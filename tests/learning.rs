@@ -18,7 +18,8 @@ fn mean_success(rows: &[csv::StringRecord], col: usize) -> f64 {
 fn flat_success_rises_from_random_to_80_percent_within_250k_steps() {
     let root = support::root();
     let run_id = format!("learn-{}", std::process::id());
-    support::lavatube_run("configs/default.toml", &run_id);
+    let (code, text) = support::lavatube_run("configs/default.toml", &run_id);
+    assert_eq!(code, 0, "lavatube run failed:\n{text}");
     let mut reader = csv::Reader::from_path(root.join("runs").join(&run_id).join("metrics.csv"))
         .expect("metrics.csv");
     let col = reader

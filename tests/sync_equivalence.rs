@@ -58,7 +58,8 @@ fn sync_runtime_matches_the_in_process_loop_bit_for_bit() {
     let root = support::root();
     let cfg = Config::load(&root.join("configs/smoke.toml")).expect("smoke config");
     let run_id = format!("sync-{}", std::process::id());
-    support::lavatube_run("configs/smoke.toml", &run_id);
+    let (code, text) = support::lavatube_run("configs/smoke.toml", &run_id);
+    assert_eq!(code, 0, "lavatube run failed:\n{text}");
     let dir = root
         .join("target/e2e-runs")
         .join(&run_id)
