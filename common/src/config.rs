@@ -142,10 +142,6 @@ impl Rect {
             && z >= self.z[0] - margin
             && z <= self.z[1] + margin
     }
-
-    pub fn center(&self) -> [f64; 2] {
-        [0.5 * (self.x[0] + self.x[1]), 0.5 * (self.z[0] + self.z[1])]
-    }
 }
 
 /// The simulator: envs, physics timing, terrain, robot and task rules.
@@ -365,7 +361,7 @@ pub struct TaskConfig {
     pub tip_limit_deg: f64,
     /// ProgressReward = progress-scale · PD (SPEC S4). Default 100.
     pub progress_scale: f64,
-    /// Redraws before giving up on a target inside the area (then the area centre is used). 1 ..= 10^6. Default 1000.
+    /// Redraws before giving up on a target inside the area (then the last draw is clamped into the area). 1 ..= 10^6. Default 1000.
     pub max_target_draws: usize,
 }
 
@@ -529,7 +525,10 @@ impl Config {
         })?;
         let mut cfg = Self::parse(&text, path)?;
         if let (Some(h), Some(dir)) = (cfg.sim.terrain.heightmap.as_mut(), path.parent()) {
-            h.path = dir.join(&h.path);
+            // Absolute, so the resolved config the launcher writes into the run directory
+            // still points at the same file from there.
+            let joined = dir.join(&h.path);
+            h.path = std::fs::canonicalize(&joined).unwrap_or(joined);
         }
         cfg.validate()?;
         Ok(cfg)
@@ -781,6 +780,24 @@ mod tests {
         );
         let e = parse("[sim]\nflat-envs = 0\n").expect_err("no envs");
         assert!(e.to_string().contains("sim.flat-envs"));
+    }
+
+    #[test]
+    fn heightmap_path_survives_being_rewritten_elsewhere() {
+        let dir = std::env::temp_dir().join(format!("lavatube-hm-{}", std::process::id()));
+        std::fs::create_dir_all(dir.join("run")).expect("dirs");
+        std::fs::write(dir.join("floor.grid"), "2 2\n0 0\n0 0\n").expect("grid");
+        let cfg_path = dir.join("c.toml");
+        let body = "[sim.terrain.heightmap]\npath = \"floor.grid\"\nmetres-per-pixel = 0.1\norigin = [0.0, 0.0]\n";
+        std::fs::write(&cfg_path, body).expect("config");
+        let cfg = Config::load(&cfg_path).expect("relative to the config file");
+        let hm = cfg.sim.terrain.heightmap.clone().expect("heightmap");
+        assert!(hm.path.is_absolute() && hm.path.exists(), "{:?}", hm.path);
+        // The launcher writes the resolved config into the run directory; children load it there.
+        let resolved = dir.join("run/config.toml");
+        std::fs::write(&resolved, cfg.to_toml()).expect("resolved");
+        assert_eq!(Config::load(&resolved).expect("still found"), cfg);
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     #[test]

@@ -42,6 +42,8 @@ fn new_run_id() -> String {
 struct Progress {
     tick: TickHeader,
     terrain: TerrainHeader,
+    /// Both areas have envs: only then does scoring a two-class terrain estimate mean anything.
+    both_areas: bool,
 }
 
 impl Progress {
@@ -50,7 +52,8 @@ impl Progress {
     }
 
     fn terrain_accuracy(&self) -> Option<f64> {
-        (self.terrain.scored > 0).then(|| self.terrain.correct as f64 / self.terrain.scored as f64)
+        (self.both_areas && self.terrain.scored > 0)
+            .then(|| self.terrain.correct as f64 / self.terrain.scored as f64)
     }
 }
 
@@ -146,7 +149,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     );
 
     let started = Instant::now();
-    let mut progress = Progress::default();
+    let mut progress = Progress {
+        both_areas: cfg.sim.flat_envs > 0 && cfg.sim.rough_envs > 0,
+        ..Progress::default()
+    };
     let mut interrupted = false;
     let mut failed: Option<String> = None;
     loop {
