@@ -67,6 +67,10 @@ pub struct StepInfo {
     pub final_obs: [f32; OBS_DIM],
     /// Number of physics faults (non-finite state) so far in this env.
     pub faults: u64,
+    /// The target this step drove toward and the episode's steps including this one
+    /// (read before a new episode replaces them).
+    pub target: [f64; 2],
+    pub episode_steps: u32,
 }
 
 /// One env: a physics world, a robot, an area and the current episode.
@@ -231,6 +235,7 @@ impl Env {
         } else {
             [0.0; OBS_DIM]
         };
+        let (target, episode_steps) = (self.episode.target, self.episode.steps);
         if let Some(ending) = result.ending {
             if ending.respawns() {
                 let (world, robot) = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
@@ -244,6 +249,8 @@ impl Env {
             ending: result.ending,
             final_obs,
             faults: self.faults,
+            target,
+            episode_steps,
         }
     }
 }

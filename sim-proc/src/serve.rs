@@ -20,6 +20,32 @@ use std::time::{Duration, Instant};
 /// How long to sleep between checks while waiting for a policy.
 const POLL: Duration = Duration::from_millis(100);
 
+/// Paces "still waiting" warnings: due once per `every` of waiting.
+struct Nag {
+    since: Instant,
+    next: Duration,
+    every: Duration,
+}
+
+impl Nag {
+    fn new(every: Duration) -> Self {
+        Self {
+            since: Instant::now(),
+            next: every,
+            every,
+        }
+    }
+
+    /// Seconds waited so far, when a warning is due.
+    fn due(&mut self) -> Option<u64> {
+        let waited = self.since.elapsed();
+        (waited >= self.next).then(|| {
+            self.next += self.every;
+            waited.as_secs()
+        })
+    }
+}
+
 /// Applies the newest policy message, if any. Returns whether the weights changed.
 fn take_policy(
     rx: &Receiver<f32, PolicyHeader>,
@@ -67,16 +93,14 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     let mut ctrl: Option<PolicyController> = None;
     let mut version = 0u32;
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, "waiting for the first policy");
-    let waited = Instant::now();
+    let mut nag = Nag::new(Duration::from_secs(10));
     while !take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)? {
         if bus.stop_requested(&control) {
             return Ok(());
         }
         policy_rx.wait(POLL)?;
-        if waited.elapsed() > Duration::from_secs(10)
-            && waited.elapsed().as_millis() % 10_000 < POLL.as_millis()
-        {
-            tracing::warn!(secs = waited.elapsed().as_secs(), "still no policy");
+        if let Some(secs) = nag.due() {
+            tracing::warn!(secs, "still no policy");
         }
     }
     tracing::info!(version, "first policy received");
@@ -136,21 +160,15 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
         );
         if cfg.run.mode == LearnMode::Sync && env_steps < cfg.run.total_steps {
             // DESIGN §3: on-policy PPO; wait for the weights learned from this chunk.
-            let since = Instant::now();
+            let mut nag = Nag::new(Duration::from_secs(30));
             while version <= chunk_version {
                 if bus.stop_requested(&control) {
                     break 'run;
                 }
                 policy_rx.wait(POLL)?;
                 take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)?;
-                if since.elapsed() > Duration::from_secs(30)
-                    && since.elapsed().as_millis() % 30_000 < POLL.as_millis()
-                {
-                    tracing::warn!(
-                        secs = since.elapsed().as_secs(),
-                        version,
-                        "sync mode: still waiting for the learner"
-                    );
+                if let Some(secs) = nag.due() {
+                    tracing::warn!(secs, version, "sync mode: still waiting for the learner");
                 }
             }
         }

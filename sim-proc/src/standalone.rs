@@ -67,7 +67,7 @@ pub struct Summary {
 }
 
 /// One telemetry row for an env after a step.
-pub fn telemetry_row(env: &Env, info: &StepInfo, target: [f64; 2]) -> TelemetryRow {
+pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
     let p = env.pose();
     let [l, r] = env.action();
     TelemetryRow {
@@ -88,8 +88,8 @@ pub fn telemetry_row(env: &Env, info: &StepInfo, target: [f64; 2]) -> TelemetryR
         terminated: info.ending.is_some_and(|e| e.terminated()),
         truncated: info.ending.is_some_and(|e| e.truncated()),
         success: info.ending == Some(crate::task::Ending::Success),
-        target_x: target[0],
-        target_z: target[1],
+        target_x: info.target[0],
+        target_z: info.target[1],
     }
 }
 
@@ -112,17 +112,15 @@ pub fn drive(
         for (i, a) in actions.iter_mut().enumerate() {
             *a = controller.act(i, &obs[i]);
         }
-        let targets: Vec<[f64; 2]> = batch.envs.iter().map(|e| e.episode.target).collect();
-        let steps_before: Vec<u32> = batch.envs.iter().map(|e| e.episode.steps).collect();
         batch.step(&actions, &mut infos, &mut obs);
         for (i, env) in batch.envs.iter().enumerate() {
             let info = &infos[i];
-            sink(&telemetry_row(env, info, targets[i]))?;
+            sink(&telemetry_row(env, info))?;
             if let Some(end) = info.ending {
                 s.episodes += 1;
                 if end == crate::task::Ending::Success {
                     s.successes += 1;
-                    reach_steps += u64::from(steps_before[i]) + 1;
+                    reach_steps += u64::from(info.episode_steps);
                 }
             }
         }
