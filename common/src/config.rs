@@ -64,6 +64,8 @@ pub struct Config {
     pub sim: SimConfig,
     pub ppo: PpoConfig,
     pub estimator: EstimatorConfig,
+    pub supervise: SuperviseConfig,
+    pub reproduce: ReproduceConfig,
 }
 
 /// How runs are named, seeded and paced.
@@ -80,6 +82,104 @@ pub struct RunConfig {
     pub total_steps: u64,
     /// Directory under which each run gets `<out-dir>/<run-id>/`. Default `runs`.
     pub out_dir: PathBuf,
+    /// The learners of the run, one per policy slot (DESIGN §5). A `general` learner trains on
+    /// every transition; a `flat` or `rough` one only on those the estimator assigned to its
+    /// terrain (SPEC S8). Each slot at most once. Default `["general"]`.
+    pub learners: Vec<PolicySlot>,
+    /// Start every learner from this learner checkpoint's weights and observation statistics
+    /// with fresh counters and optimizer (a warm start, e.g. the general model from the flat
+    /// one). Relative paths are relative to the config file. Default none.
+    pub init_from: Option<PathBuf>,
+    /// Policy slots served frozen from a learner checkpoint, never trained (evaluation, e.g.
+    /// switching between fixed FTM and RTM): `{ flat = "ftm.ckpt", rough = "rtm.ckpt" }`.
+    /// Relative paths are relative to the config file. No slot may also be in `learners`.
+    pub frozen: std::collections::BTreeMap<PolicySlot, PathBuf>,
+}
+
+/// A policy slot of the sim's pool (DESIGN §5): what a learner fills and an env acts with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PolicySlot {
+    General,
+    Flat,
+    Rough,
+}
+
+impl PolicySlot {
+    pub const ALL: [PolicySlot; 3] = [PolicySlot::General, PolicySlot::Flat, PolicySlot::Rough];
+
+    /// The slot's index on the wire (`PolicyHeader::slot`, `Transition::slot`).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PolicySlot::General => "general",
+            PolicySlot::Flat => "flat",
+            PolicySlot::Rough => "rough",
+        }
+    }
+
+    /// The process (and shared-memory node) name of the slot's learner.
+    pub fn learner_name(self) -> &'static str {
+        match self {
+            PolicySlot::General => "learner",
+            PolicySlot::Flat => "learner-flat",
+            PolicySlot::Rough => "learner-rough",
+        }
+    }
+
+    /// Parses a slot name (`general`, `flat`, `rough`), for command lines.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown policy slot `{name}`: use general, flat or rough"))
+    }
+
+    /// The estimator class whose transitions the slot's learner trains on (class 0 is the
+    /// mixture component with the lowest mean, i.e. flat); `None`: all.
+    pub fn class(self) -> Option<u8> {
+        match self {
+            PolicySlot::General => None,
+            PolicySlot::Flat => Some(0),
+            PolicySlot::Rough => Some(1),
+        }
+    }
+
+    /// The specialist for an estimator class (SPEC S8), if there is one.
+    pub fn for_class(class: u8) -> Option<Self> {
+        match class {
+            0 => Some(PolicySlot::Flat),
+            1 => Some(PolicySlot::Rough),
+            _ => None,
+        }
+    }
+}
+
+/// Which slot an env acts with (DESIGN §5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Acting {
+    General,
+    Flat,
+    Rough,
+    /// The specialist for the estimator's current class, changed only after the estimate has
+    /// held for `switch-dwell` ticks (SPEC S8).
+    Switch,
+}
+
+impl Acting {
+    /// The slot every env acts with, unless switching.
+    pub fn fixed(self) -> Option<PolicySlot> {
+        match self {
+            Acting::General => Some(PolicySlot::General),
+            Acting::Flat => Some(PolicySlot::Flat),
+            Acting::Rough => Some(PolicySlot::Rough),
+            Acting::Switch => None,
+        }
+    }
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -96,6 +196,9 @@ impl Default for RunConfig {
             mode: LearnMode::Sync,
             total_steps: 2_500_000,
             out_dir: PathBuf::from("runs"),
+            learners: vec![PolicySlot::General],
+            init_from: None,
+            frozen: Default::default(),
         }
     }
 }
@@ -154,6 +257,14 @@ pub struct SimConfig {
     pub rough_envs: usize,
     /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
     pub threads: usize,
+    /// The policy slot the envs act with, or `switch` (DESIGN §5). A slot without a policy
+    /// yet falls back to `general`, then to any slot that has one. Default `general`.
+    pub acting: Acting,
+    /// Switching: ticks a new terrain estimate must hold before an env changes policy. 1 ..= 10000. Default 10.
+    pub switch_dwell: usize,
+    /// Act with each policy's mean action instead of a sample (evaluation; the rollouts'
+    /// log-probabilities are then not those of the actions). Default false.
+    pub mean_actions: bool,
     /// Physics time step, seconds. SPEC S2 (interpretation: Unity's default). (0, 0.1]. Default 0.02.
     pub physics_dt: f64,
     /// Physics steps per decision step. SPEC S2. 1 ..= 100. Default 5.
@@ -169,6 +280,9 @@ impl Default for SimConfig {
             flat_envs: 9,
             rough_envs: 0,
             threads: 2,
+            acting: Acting::General,
+            switch_dwell: 10,
+            mean_actions: false,
             physics_dt: 0.02,
             substeps: 5,
             terrain: TerrainConfig::default(),
@@ -425,7 +539,9 @@ pub struct PpoConfig {
     pub obs_norm: bool,
     /// Clip of normalised observations. (0, 100]. Default 10.
     pub obs_clip: f64,
-    /// Write a checkpoint every this many updates. 1 ..= 10^6. Default 10.
+    /// Write a checkpoint every this many updates. 1 ..= 10^6. Default 1: a learner killed
+    /// at any moment then loses no update and its replacement continues the version
+    /// sequence exactly (DESIGN §4); larger values trade that for less disk traffic.
     pub checkpoint_every: usize,
     /// Checkpoints kept (oldest removed). 1 ..= 1000. Default 3.
     pub keep_checkpoints: usize,
@@ -456,7 +572,7 @@ impl Default for PpoConfig {
             init_log_std: 0.0,
             obs_norm: true,
             obs_clip: 10.0,
-            checkpoint_every: 10,
+            checkpoint_every: 1,
             keep_checkpoints: 3,
             max_policy_lag: 4,
         }
@@ -516,6 +632,120 @@ impl Default for EstimatorConfig {
     }
 }
 
+/// When the launcher restarts a process that exited.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Restart {
+    /// An exit ends the run (a failure fails it).
+    Never,
+    /// Restart after a non-zero exit or a signal; a clean exit is final.
+    OnFailure,
+    /// Restart after any exit while the run goes on.
+    Always,
+}
+
+/// One process's restart policy.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct RestartPolicy {
+    pub restart: Restart,
+    /// Restarts allowed over the run; one more exit ends it. 0 ..= 1000.
+    pub max_restarts: u32,
+    /// Wait before the first restart, doubled for each further one (capped at 30 s). 0 ..= 600000.
+    pub backoff_ms: u64,
+}
+
+impl RestartPolicy {
+    /// The wait before restart number `n` (0-based).
+    pub fn backoff(&self, n: u32) -> std::time::Duration {
+        let ms = self.backoff_ms.saturating_mul(1 << n.min(16)).min(30_000);
+        std::time::Duration::from_millis(ms)
+    }
+
+    /// Whether a process that exited (`success`) after `restarts` restarts comes back.
+    pub fn restarts_after(&self, success: bool, restarts: u32) -> bool {
+        let wanted = match self.restart {
+            Restart::Never => false,
+            Restart::OnFailure => !success,
+            Restart::Always => true,
+        };
+        wanted && restarts < self.max_restarts
+    }
+}
+
+/// How `lavatube run` supervises its processes (DESIGN §4).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct SuperviseConfig {
+    /// Default: on-failure, 5 restarts, 1 s backoff (it resumes from its newest checkpoint).
+    pub learner: RestartPolicy,
+    /// Default: on-failure, 5 restarts, 1 s backoff (the sim keeps its last estimates meanwhile).
+    pub estimator: RestartPolicy,
+    /// Default: never (the sim is the run; its failure ends it).
+    pub sim: RestartPolicy,
+    /// How long a process gets to stop on request before SIGTERM, and again before SIGKILL,
+    /// milliseconds. 100 ..= 600000. Default 5000.
+    pub grace_ms: u64,
+}
+
+impl Default for SuperviseConfig {
+    fn default() -> Self {
+        let on_failure = RestartPolicy {
+            restart: Restart::OnFailure,
+            max_restarts: 5,
+            backoff_ms: 1000,
+        };
+        Self {
+            learner: on_failure,
+            estimator: on_failure,
+            sim: RestartPolicy {
+                restart: Restart::Never,
+                max_restarts: 0,
+                backoff_ms: 0,
+            },
+            grace_ms: 5000,
+        }
+    }
+}
+
+/// `lavatube reproduce`: the paper's pipeline, stage by stage (DESIGN §6, SPEC S6–S8). The
+/// other sections give everything else (PPO, terrain, estimator) for every stage.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct ReproduceConfig {
+    /// (a) Envs of the initial flat model, all on flat ground. 1 ..= 1024. Default 9 (SPEC S6).
+    pub flat_envs: usize,
+    /// (a) Its environment steps. 1 ..= 10^10. Default 2.5 M (SPEC S6).
+    pub flat_steps: u64,
+    /// (b), (c), (e) Envs per area of the mixed stages. 1 ..= 512. Default 4 (SPEC S6: 4 + 4).
+    pub envs_per_area: usize,
+    /// (b) Environment steps of the general model, from (a). 1 ..= 10^10. Default 2.5 M.
+    pub general_steps: u64,
+    /// (c) Decision steps per env collected with the general model. 1 ..= 10^6. Default 500 (SPEC S7).
+    pub collect_steps: u64,
+    /// (e) Environment steps of the FTM/RTM fine-tuning, from (b). 1 ..= 10^10. Default 500 k.
+    pub finetune_steps: u64,
+    /// (f) Episodes per model × area cell. 1 ..= 10^6. Default 200.
+    pub eval_episodes: u64,
+    /// (f) Envs per evaluation cell. 1 ..= 1024. Default 8.
+    pub eval_envs: usize,
+}
+
+impl Default for ReproduceConfig {
+    fn default() -> Self {
+        Self {
+            flat_envs: 9,
+            flat_steps: 2_500_000,
+            envs_per_area: 4,
+            general_steps: 2_500_000,
+            collect_steps: 500,
+            finetune_steps: 500_000,
+            eval_episodes: 200,
+            eval_envs: 8,
+        }
+    }
+}
+
 impl Config {
     /// Reads, parses and validates a config file.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
@@ -524,6 +754,15 @@ impl Config {
             reason: e.to_string(),
         })?;
         let mut cfg = Self::parse(&text, path)?;
+        if let Some(dir) = path.parent() {
+            // Absolute, so the resolved config in the run directory names the same files.
+            let resolve = |p: &mut PathBuf| {
+                let joined = dir.join(&*p);
+                *p = std::fs::canonicalize(&joined).unwrap_or(joined);
+            };
+            cfg.run.init_from.iter_mut().for_each(resolve);
+            cfg.run.frozen.values_mut().for_each(resolve);
+        }
         if let (Some(h), Some(dir)) = (cfg.sim.terrain.heightmap.as_mut(), path.parent()) {
             // Absolute, so the resolved config the launcher writes into the run directory
             // still points at the same file from there.
@@ -562,8 +801,27 @@ impl Config {
                 "must be at least 1",
             ));
         }
+        if (r.learners.is_empty() && r.frozen.is_empty())
+            || (1..r.learners.len()).any(|i| r.learners[..i].contains(&r.learners[i]))
+            || r.learners.iter().any(|s| r.frozen.contains_key(s))
+        {
+            return Err(invalid(
+                "run.learners",
+                &r.learners,
+                "needs at least one slot (or a frozen one), each at most once and not also in run.frozen",
+            ));
+        }
+        if let Some(p) = r.frozen.values().find(|p| !p.is_file()) {
+            return Err(invalid("run.frozen", p, "file not found"));
+        }
+        if let Some(p) = &r.init_from
+            && !p.is_file()
+        {
+            return Err(invalid("run.init-from", p, "file not found"));
+        }
         let s = &self.sim;
         count_in("sim.flat-envs", s.flat_envs, 0, 1024)?;
+        count_in("sim.switch-dwell", s.switch_dwell, 1, 10_000)?;
         count_in("sim.rough-envs", s.rough_envs, 0, 1024)?;
         if s.num_envs() == 0 {
             return Err(invalid(
@@ -729,6 +987,50 @@ impl Config {
                 "must be in [0, 1)",
             ));
         }
+        let v = &self.supervise;
+        for (field, backoff, max) in [
+            (
+                "supervise.learner",
+                v.learner.backoff_ms,
+                v.learner.max_restarts,
+            ),
+            (
+                "supervise.estimator",
+                v.estimator.backoff_ms,
+                v.estimator.max_restarts,
+            ),
+            ("supervise.sim", v.sim.backoff_ms, v.sim.max_restarts),
+        ] {
+            if backoff > 600_000 || max > 1000 {
+                return Err(invalid(
+                    field,
+                    (backoff, max),
+                    "needs backoff-ms <= 600000 and max-restarts <= 1000",
+                ));
+            }
+        }
+        let p = &self.reproduce;
+        count_in("reproduce.flat-envs", p.flat_envs, 1, 1024)?;
+        count_in("reproduce.envs-per-area", p.envs_per_area, 1, 512)?;
+        count_in("reproduce.eval-envs", p.eval_envs, 1, 1024)?;
+        for (field, v, hi) in [
+            ("reproduce.flat-steps", p.flat_steps, 10_000_000_000),
+            ("reproduce.general-steps", p.general_steps, 10_000_000_000),
+            ("reproduce.collect-steps", p.collect_steps, 1_000_000),
+            ("reproduce.finetune-steps", p.finetune_steps, 10_000_000_000),
+            ("reproduce.eval-episodes", p.eval_episodes, 1_000_000),
+        ] {
+            if !(1..=hi).contains(&v) {
+                return Err(invalid(field, v, format!("must be in [1, {hi}]")));
+            }
+        }
+        if !(100..=600_000).contains(&v.grace_ms) {
+            return Err(invalid(
+                "supervise.grace-ms",
+                v.grace_ms,
+                "must be in [100, 600000]",
+            ));
+        }
         Ok(())
     }
 }
@@ -749,6 +1051,40 @@ mod tests {
         let c = Config::parse(text, Path::new("t.toml"))?;
         c.validate()?;
         Ok(c)
+    }
+
+    #[test]
+    fn learner_slots_are_checked() {
+        let c = parse("[run]\nlearners = [\"flat\", \"rough\"]\n[sim]\nacting = \"switch\"\n")
+            .expect("valid");
+        assert_eq!(c.run.learners, [PolicySlot::Flat, PolicySlot::Rough]);
+        assert_eq!(c.sim.acting.fixed(), None);
+        assert_eq!(PolicySlot::for_class(1), Some(PolicySlot::Rough));
+        assert_eq!(PolicySlot::Flat.class(), Some(0));
+        let err = parse("[run]\nlearners = [\"flat\", \"flat\"]\n").expect_err("twice");
+        assert!(err.to_string().contains("run.learners"), "{err}");
+        let err = parse("[run]\ninit-from = \"/nonexistent.ckpt\"\n").expect_err("missing");
+        assert!(err.to_string().contains("run.init-from"), "{err}");
+    }
+
+    #[test]
+    fn restart_policies_decide_and_back_off() {
+        let c = parse(
+            "[supervise]\nlearner = { restart = \"always\", max-restarts = 2, backoff-ms = 500 }\n",
+        )
+        .expect("valid");
+        let l = c.supervise.learner;
+        assert!(l.restarts_after(true, 0) && l.restarts_after(false, 1));
+        assert!(!l.restarts_after(false, 2), "the third exit is final");
+        assert_eq!(
+            [l.backoff(0), l.backoff(1), l.backoff(2), l.backoff(10)].map(|d| d.as_millis()),
+            [500, 1000, 2000, 30_000]
+        );
+        let e = c.supervise.estimator;
+        assert!(e.restarts_after(false, 0) && !e.restarts_after(true, 0));
+        assert!(!c.supervise.sim.restarts_after(false, 0));
+        let err = parse("[supervise]\ngrace-ms = 5\n").expect_err("too short");
+        assert!(err.to_string().contains("supervise.grace-ms"), "{err}");
     }
 
     #[test]

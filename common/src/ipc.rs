@@ -4,6 +4,7 @@
 //!
 //! Ports of the `ipc` service type hold an `Rc`: keep all of a process's ports on one thread.
 
+use crate::wire::{SwapReply, SwapRequest};
 use iceoryx2::node::NodeView;
 use iceoryx2::port::listener::Listener;
 use iceoryx2::port::notifier::Notifier;
@@ -208,7 +209,7 @@ impl Bus {
             .max_subscribers(spec.subscribers)
             .max_nodes(32)
             .open_or_create()
-            .map_err(|e| ipc_err(format!("open service `{name}`"))(&e))
+            .map_err(|e| open_error::<T, H>(name, &e))
     }
 
     /// A publisher on `spec`'s service (`sub` picks e.g. a policy slot).
@@ -377,6 +378,77 @@ impl<T: Debug + Copy + ZeroCopySend + 'static, H: Debug + Copy + ZeroCopySend + 
             Ok(_) | Err(iceoryx2::port::listener::ListenerWaitError::InterruptSignal) => Ok(()),
             Err(e) => Err(ipc_err(format!("wait on `{}`", self.name))(&e)),
         }
+    }
+}
+
+/// The error for a service that could not be opened. A layout mismatch gets its own message:
+/// the other side was built from a different version of the wire types, and this process
+/// must not join (the processes already connected are unaffected).
+fn open_error<T, H>(
+    name: &ServiceName,
+    e: &iceoryx2::service::builder::publish_subscribe::PublishSubscribeOpenOrCreateError,
+) -> IpcError {
+    use iceoryx2::service::builder::publish_subscribe::{
+        PublishSubscribeOpenError as Open, PublishSubscribeOpenOrCreateError as Either,
+    };
+    match e {
+        Either::PublishSubscribeOpenError(Open::IncompatibleTypes) => IpcError {
+            what: format!("open service `{name}`"),
+            reason: format!(
+                "the run's processes use a different version of its message types (this one: `[{}]` with header `{}`); build every process from one checkout",
+                std::any::type_name::<T>(),
+                std::any::type_name::<H>()
+            ),
+        },
+        e => ipc_err(format!("open service `{name}`"))(e),
+    }
+}
+
+/// Service ports of the `swap` request-response service (`lavatube swap-learner` → launcher).
+pub type SwapServer = iceoryx2::port::server::Server<Svc, SwapRequest, (), SwapReply, ()>;
+pub type SwapClient = iceoryx2::port::client::Client<Svc, SwapRequest, (), SwapReply, ()>;
+
+impl Bus {
+    fn swap_service(
+        &self,
+    ) -> Result<
+        iceoryx2::service::port_factory::request_response::PortFactory<
+            Svc,
+            SwapRequest,
+            (),
+            SwapReply,
+            (),
+        >,
+        IpcError,
+    > {
+        let name = self.service_name("swap", None)?;
+        self.node
+            .service_builder(&name)
+            .request_response::<SwapRequest, SwapReply>()
+            .open_or_create()
+            .map_err(|e| ipc_err(format!("open service `{name}`"))(&e))
+    }
+
+    /// The launcher's side of `swap`.
+    pub fn swap_server(&self) -> Result<SwapServer, IpcError> {
+        self.swap_service()?
+            .server_builder()
+            .create()
+            .map_err(|e| ipc_err("swap server")(&e))
+    }
+
+    /// `lavatube swap-learner`'s side of `swap`.
+    pub fn swap_client(&self) -> Result<SwapClient, IpcError> {
+        self.swap_service()?
+            .client_builder()
+            .create()
+            .map_err(|e| ipc_err("swap client")(&e))
+    }
+
+    /// Removes the resources of the run's dead nodes (processes killed with SIGKILL), so their
+    /// ports stop counting against the services' limits. Returns how many nodes were removed.
+    pub fn cleanup_dead_nodes(&self) -> usize {
+        self.node.try_cleanup_dead_nodes().cleanups as usize
     }
 }
 

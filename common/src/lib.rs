@@ -8,6 +8,8 @@ pub mod cli;
 pub mod config;
 pub mod ipc;
 pub mod logging;
+#[cfg(feature = "plot")]
+pub mod plot;
 pub mod policy;
 pub mod rng;
 pub mod rollout;

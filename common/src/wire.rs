@@ -30,9 +30,10 @@ pub struct RolloutHeader {
 /// Header of a policy message; the slice is the flat actor in `crate::policy`'s layout.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.PolicyHeader.v1")]
+#[type_name("lavatube.PolicyHeader.v2")]
 pub struct PolicyHeader {
-    /// Monotonic per slot, continued across learner restarts.
+    /// Per slot, continued across learner restarts and swaps (the new learner resumes the
+    /// newest checkpoint, which is taken before each publish).
     pub version: u32,
     pub slot: u32,
     pub obs_dim: u32,
@@ -44,6 +45,14 @@ pub struct PolicyHeader {
     pub updates: u64,
     /// Environment steps the policy has learned from.
     pub env_steps: u64,
+    /// Rollout chunks of the current sim this learner has consumed: the id of the last one
+    /// plus 1, 0 before the first. A sync-mode sim waits for this to pass its last chunk.
+    pub chunks_seen: u64,
+    /// Process id of the publishing learner: a new one means a restarted or swapped learner,
+    /// whose current policy a waiting sync-mode sim takes instead of waiting for a chunk it
+    /// may never have received.
+    pub learner: u32,
+    pub _reserved: u32,
 }
 
 impl PolicyHeader {
@@ -62,6 +71,9 @@ impl PolicyHeader {
             obs_clip,
             updates: 0,
             env_steps: 0,
+            chunks_seen: 0,
+            learner: std::process::id(),
+            _reserved: 0,
         }
     }
 
@@ -80,7 +92,7 @@ impl PolicyHeader {
 /// Header of one telemetry tick; the slice holds one [`EnvTick`] per env.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.TickHeader.v1")]
+#[type_name("lavatube.TickHeader.v2")]
 pub struct TickHeader {
     pub tick: u64,
     /// Environment steps so far (ticks × envs).
@@ -90,6 +102,30 @@ pub struct TickHeader {
     /// Completed episodes and successes so far, over all envs.
     pub episodes: u64,
     pub successes: u64,
+    /// When the sim sent the tick, [`monotonic_ns`]: readers on the same host subtract it from
+    /// their own clock to measure transport latency (`lavatube bench`).
+    pub sent_ns: u64,
+    /// Sum over successful episodes of their length in ticks, and of its square: the mean
+    /// and std of the reach time (SPEC S8's Table 1) without recording every episode.
+    pub reach_ticks: u64,
+    pub reach_ticks_sq: u64,
+}
+
+/// Nanoseconds of `CLOCK_MONOTONIC`: one clock for every process on a host (unlike
+/// `std::time::Instant`, whose value cannot cross a process boundary), for send timestamps.
+pub fn monotonic_ns() -> u64 {
+    let mut ts = libc::timespec {
+        tv_sec: 0,
+        tv_nsec: 0,
+    };
+    // SAFETY: clock_gettime(2) writes one timespec through a valid pointer; CLOCK_MONOTONIC
+    // always exists on Linux, so it cannot fail.
+    unsafe {
+        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
+    }
+    (ts.tv_sec as u64)
+        .saturating_mul(1_000_000_000)
+        .saturating_add(ts.tv_nsec as u64)
 }
 
 /// Episode event bits of [`EnvTick::events`].
@@ -158,6 +194,121 @@ pub struct TerrainEstimate {
     pub window: u32,
 }
 
+// ---- `lavatube swap-learner` → launcher: `swap` (request-response) --------------------------
+
+/// Bytes of a path in a [`SwapRequest`].
+pub const SWAP_PATH_BYTES: usize = 1024;
+/// Bytes of a [`SwapReply`] message.
+pub const SWAP_MESSAGE_BYTES: usize = 512;
+
+/// Replace the run's learner: with a new config (only its `[ppo]` section may differ from the
+/// running one's) and/or starting from a named checkpoint. Empty strings mean "unchanged" and
+/// "the run's newest checkpoint". Paths are absolute, UTF-8.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.SwapRequest.v1")]
+pub struct SwapRequest {
+    pub config_len: u32,
+    pub checkpoint_len: u32,
+    /// The policy slot whose learner to replace (`PolicySlot::index`).
+    pub slot: u32,
+    pub _reserved: u32,
+    pub config: [u8; SWAP_PATH_BYTES],
+    pub checkpoint: [u8; SWAP_PATH_BYTES],
+}
+
+impl Default for SwapRequest {
+    fn default() -> Self {
+        Self {
+            config_len: 0,
+            checkpoint_len: 0,
+            slot: 0,
+            _reserved: 0,
+            config: [0; SWAP_PATH_BYTES],
+            checkpoint: [0; SWAP_PATH_BYTES],
+        }
+    }
+}
+
+impl SwapRequest {
+    /// A request; fails naming the path that does not fit.
+    pub fn new(slot: u32, config: &str, checkpoint: &str) -> Result<Self, String> {
+        let mut r = Self {
+            slot,
+            ..Self::default()
+        };
+        r.config_len = put_str("config path", config, &mut r.config)?;
+        r.checkpoint_len = put_str("checkpoint path", checkpoint, &mut r.checkpoint)?;
+        Ok(r)
+    }
+
+    pub fn config(&self) -> String {
+        get_str(&self.config, self.config_len)
+    }
+
+    pub fn checkpoint(&self) -> String {
+        get_str(&self.checkpoint, self.checkpoint_len)
+    }
+}
+
+/// The launcher's answer to a [`SwapRequest`], sent once the swap is done or refused.
+#[derive(Debug, Clone, Copy, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.SwapReply.v1")]
+pub struct SwapReply {
+    /// 1 when the new learner runs, 0 when the swap was refused (the old one still runs).
+    pub ok: u32,
+    pub len: u32,
+    pub message: [u8; SWAP_MESSAGE_BYTES],
+}
+
+impl Default for SwapReply {
+    fn default() -> Self {
+        Self {
+            ok: 0,
+            len: 0,
+            message: [0; SWAP_MESSAGE_BYTES],
+        }
+    }
+}
+
+impl SwapReply {
+    /// A reply; a message longer than [`SWAP_MESSAGE_BYTES`] is cut at a character boundary.
+    pub fn new(ok: bool, message: &str) -> Self {
+        let mut end = message.len().min(SWAP_MESSAGE_BYTES);
+        while !message.is_char_boundary(end) {
+            end -= 1;
+        }
+        let mut r = Self {
+            ok: u32::from(ok),
+            ..Self::default()
+        };
+        r.len = put_str("message", &message[..end], &mut r.message).unwrap_or(0);
+        r
+    }
+
+    pub fn message(&self) -> String {
+        get_str(&self.message, self.len)
+    }
+}
+
+fn put_str(what: &str, s: &str, buf: &mut [u8]) -> Result<u32, String> {
+    let b = s.as_bytes();
+    if b.len() > buf.len() {
+        return Err(format!(
+            "{what} is {} bytes; at most {} fit",
+            b.len(),
+            buf.len()
+        ));
+    }
+    buf[..b.len()].copy_from_slice(b);
+    Ok(b.len() as u32)
+}
+
+fn get_str(buf: &[u8], len: u32) -> String {
+    String::from_utf8_lossy(&buf[..(len as usize).min(buf.len())]).into_owned()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -180,10 +331,12 @@ mod tests {
     fn policy_header_layout_and_round_trip() {
         assert_eq!(
             (size_of::<PolicyHeader>(), align_of::<PolicyHeader>()),
-            (56, 8),
+            (72, 8),
             "{MSG}"
         );
         assert_eq!(offset_of!(PolicyHeader, hidden), 20, "{MSG}");
+        assert_eq!(offset_of!(PolicyHeader, chunks_seen), 56, "{MSG}");
+        assert_eq!(offset_of!(PolicyHeader, learner), 64, "{MSG}");
         assert_eq!(offset_of!(PolicyHeader, obs_clip), 36, "{MSG}");
         assert_eq!(offset_of!(PolicyHeader, updates), 40, "{MSG}");
         let l = PolicyLayout::new(10, &[128, 64], 2);
@@ -194,10 +347,12 @@ mod tests {
     fn telemetry_layouts() {
         assert_eq!(
             (size_of::<TickHeader>(), align_of::<TickHeader>()),
-            (40, 8),
+            (64, 8),
             "{MSG}"
         );
         assert_eq!(offset_of!(TickHeader, episodes), 24, "{MSG}");
+        assert_eq!(offset_of!(TickHeader, sent_ns), 40, "{MSG}");
+        assert_eq!(offset_of!(TickHeader, reach_ticks_sq), 56, "{MSG}");
         assert_eq!(
             (size_of::<EnvTick>(), align_of::<EnvTick>()),
             (40, 4),
@@ -205,6 +360,23 @@ mod tests {
         );
         assert_eq!(offset_of!(EnvTick, pos), 8, "{MSG}");
         assert_eq!(offset_of!(EnvTick, sin_pitch), 32, "{MSG}");
+    }
+
+    #[test]
+    fn swap_messages_round_trip_and_refuse_long_paths() {
+        let r = SwapRequest::new(1, "/runs/a/new.toml", "").expect("fits");
+        assert_eq!(
+            (r.config(), r.checkpoint()),
+            ("/runs/a/new.toml".into(), String::new())
+        );
+        let long = "x".repeat(SWAP_PATH_BYTES + 1);
+        assert_eq!(
+            SwapRequest::new(0, "", &long).expect_err("too long"),
+            "checkpoint path is 1025 bytes; at most 1024 fit"
+        );
+        let reply = SwapReply::new(true, &"é".repeat(SWAP_MESSAGE_BYTES));
+        assert_eq!(reply.message().chars().count(), SWAP_MESSAGE_BYTES / 2);
+        assert_eq!(size_of::<SwapRequest>(), 16 + 2 * SWAP_PATH_BYTES, "{MSG}");
     }
 
     #[test]
