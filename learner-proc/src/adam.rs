@@ -50,6 +50,17 @@ impl Adam {
         }
     }
 
+    /// CRC-32 of the step count and both moments: a short fingerprint that shows, in logs,
+    /// which optimizer state a (resumed) learner holds.
+    pub fn digest(&self) -> u32 {
+        let mut h = crc32fast::Hasher::new();
+        h.update(&self.step.to_le_bytes());
+        for x in self.m.iter().chain(&self.v) {
+            h.update(&x.to_le_bytes());
+        }
+        h.finalize()
+    }
+
     /// One step: `params -= lr · m̂ / (sqrt(v̂) + ε)`.
     pub fn step(&mut self, params: &mut [f32], grads: &[f32], lr: f32) {
         debug_assert!(params.len() == self.m.len() && grads.len() == self.m.len());
@@ -89,6 +100,18 @@ mod tests {
         let mut small = [0.1, -0.2];
         clip_global_norm(&mut small, 0.5);
         assert_eq!(small, [0.1, -0.2], "under the limit nothing changes");
+    }
+
+    #[test]
+    fn the_digest_covers_step_and_both_moments() {
+        let mut a = Adam::new(2, 1e-5);
+        let base = a.digest();
+        assert_eq!(base, Adam::new(2, 1e-5).digest());
+        a.v[1] = 1e-9;
+        assert_ne!(a.digest(), base);
+        a.v[1] = 0.0;
+        a.step = 1;
+        assert_ne!(a.digest(), base);
     }
 
     /// Hand-computed: step 1 gives m̂ = g, v̂ = g², so each parameter moves by

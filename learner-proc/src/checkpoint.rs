@@ -15,9 +15,9 @@ use std::fs::{self, File};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use common::Rng;
 use common::config::Config;
 use common::policy::PolicyLayout;
+use common::{ACT_DIM, OBS_DIM, Rng};
 use serde::{Deserialize, Serialize};
 
 use crate::LearnerError;
@@ -219,6 +219,27 @@ pub fn load_latest_good(
     })
 }
 
+impl Checkpoint {
+    /// The actor as a `common::Policy` (what `learner-proc export` writes and the sim runs),
+    /// exactly the weights the learner published for this version.
+    pub fn policy(&self, obs_clip: f32) -> Result<common::Policy, LearnerError> {
+        let shape = crate::net::NetShape::new(&self.layout);
+        if self.params.len() < shape.actor_len() {
+            return Err(LearnerError::setting(
+                "layout",
+                format!(
+                    "{} parameters cannot hold a {} actor",
+                    self.params.len(),
+                    widths(&self.layout)
+                ),
+            ));
+        }
+        let w = crate::ppo::shipped_weights(&self.obs_norm, &shape, &self.params);
+        common::Policy::new(self.layout.clone(), w, obs_clip)
+            .map_err(|e| LearnerError::setting("layout", e.to_string()))
+    }
+}
+
 impl Learner {
     /// A snapshot of the complete learner state.
     pub fn checkpoint(&self) -> Checkpoint {
@@ -261,6 +282,55 @@ impl Learner {
         let learner = Self::from_checkpoint(cfg, ckpt).map_err(|e| incompatible(&path, e))?;
         Ok((learner, path))
     }
+
+    /// A warm start from the checkpoint file `path`, for the paper's pipeline (the general
+    /// model starts from the flat model; FTM and RTM from the general model): its actor,
+    /// log-std, critic and observation statistics, with everything that belongs to a run of
+    /// training fresh. Update and step counters are 0, so the learning-rate schedule starts
+    /// over at `ppo.learning-rate` over `run.total-steps`; Adam's moments are zero, since the
+    /// source's describe another task's gradients; the minibatch RNG comes from `cfg.run.seed`.
+    ///
+    /// The policy version restarts at 0 too. A warm start begins a run directory (`serve`
+    /// resumes that directory's own checkpoints instead when it has any), so no version in it
+    /// came before; and versions keep meaning "updates done in this run", as the metrics and
+    /// the sync-mode wait read them. The observation statistics keep their sample count: the
+    /// weights were trained on inputs normalised with them, and a reset count would let the
+    /// first rollouts of the new task move them abruptly under those weights.
+    ///
+    /// The configured network (`ppo.hidden`) must match the checkpoint's; a mismatch is
+    /// refused naming both shapes and the file.
+    pub fn warm_start(cfg: &Config, path: &Path) -> Result<Self, LearnerError> {
+        let ckpt = read(path)?;
+        let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
+        if ckpt.layout != layout {
+            return Err(LearnerError::Incompatible {
+                path: path.to_path_buf(),
+                reason: format!(
+                    "its network is {} but the config's (ppo.hidden) is {}",
+                    widths(&ckpt.layout),
+                    widths(&layout)
+                ),
+            });
+        }
+        let state = LearnerState {
+            adam: Adam::new(ckpt.params.len(), cfg.ppo.adam_eps as f32),
+            params: ckpt.params,
+            obs_norm: ckpt.obs_norm,
+            rng: Rng::new(cfg.run.seed),
+            counters: Counters::default(),
+        };
+        Self::from_state(cfg, layout, state).map_err(|e| incompatible(path, e))
+    }
+}
+
+/// The layer widths of `layout`, input to output: `10 -> 64 -> 64 -> 2`.
+pub(crate) fn widths(layout: &PolicyLayout) -> String {
+    let widths: Vec<String> = std::iter::once(layout.obs_dim)
+        .chain(layout.hidden.iter().copied())
+        .chain([layout.act_dim])
+        .map(|w| w.to_string())
+        .collect();
+    widths.join(" -> ")
 }
 
 /// A checkpoint whose content does not fit the configured learner.
@@ -430,6 +500,60 @@ mod tests {
         .expect("stray");
         let (ckpt, _, skipped) = load_latest_good(dir.path()).expect("load");
         assert_eq!((ckpt.counters.update, skipped.len()), (1, 0));
+    }
+
+    /// A warm start takes the source's weights and observation statistics and nothing of its
+    /// training: counters, Adam moments, schedule and RNG are a new run's.
+    #[test]
+    fn warm_start_takes_weights_and_starts_counters_fresh() {
+        let (dir, source) = saved_dir(2, 3);
+        let path = dir.path().join(file_name(2));
+        let mut cfg = small_config(128, 10);
+        cfg.run.seed = 99;
+        let mut l = Learner::warm_start(&cfg, &path).expect("warm start");
+        assert_eq!(
+            bits(&l.params),
+            bits(&source.params),
+            "actor, log-std, critic"
+        );
+        assert_eq!(l.obs_norm, source.obs_norm);
+        assert_eq!(bits(&l.policy_weights()), bits(&source.policy_weights()));
+        assert_eq!(l.counters(), Counters::default());
+        assert_eq!(l.learning_rate(), cfg.ppo.learning_rate);
+        assert_eq!(l.adam.step, 0);
+        assert!(l.adam.m.iter().chain(&l.adam.v).all(|&x| x == 0.0));
+        assert!(
+            source.adam.m.iter().any(|&x| x != 0.0),
+            "the source's were not"
+        );
+        assert_eq!(l.rng, Rng::new(99));
+
+        let before = l.params.clone();
+        let r = OwnedRollout::acted_by(&l, 64, 4, 23);
+        let m = l.update(&r.view()).expect("update");
+        assert_ne!(
+            bits(&l.params),
+            bits(&before),
+            "one update moves the weights"
+        );
+        assert_eq!((m.update, m.policy_version, m.global_step), (1, 1, 256));
+    }
+
+    #[test]
+    fn a_warm_start_into_another_network_is_refused_naming_both() {
+        let (dir, _) = saved_dir(1, 3);
+        let path = dir.path().join(file_name(1));
+        let mut cfg = small_config(128, 10);
+        cfg.ppo.hidden = vec![32, 32];
+        let e = Learner::warm_start(&cfg, &path).err().expect("mismatch");
+        let msg = e.to_string();
+        assert!(
+            msg.contains(&path.display().to_string())
+                && msg.contains("10 -> 64 -> 64 -> 2")
+                && msg.contains("10 -> 32 -> 32 -> 2")
+                && e.is_user_error(),
+            "{msg}"
+        );
     }
 
     #[test]

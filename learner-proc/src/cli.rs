@@ -1,7 +1,9 @@
 //! The `learner-proc` command line. Exit codes: 0 success, 1 a problem with the input
 //! (bad arguments, missing or corrupt checkpoint), 2 anything unexpected.
 
+pub mod export;
 pub mod inspect;
+pub mod plot;
 
 use std::ffi::OsString;
 use std::process::ExitCode;
@@ -20,6 +22,10 @@ pub struct Cli {
 pub enum Command {
     /// Print a checkpoint's counters and architecture.
     Inspect(inspect::InspectArgs),
+    /// Write a checkpoint's actor as a policy file for `sim-proc --controller policy`.
+    Export(export::ExportArgs),
+    /// Draw a run's learning curves from its metrics CSV into a PNG.
+    Plot(plot::PlotArgs),
     /// Join a run over shared memory: train on its rollouts, publish policies, checkpoint.
     Serve(crate::serve::ServeArgs),
 }

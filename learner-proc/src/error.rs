@@ -54,6 +54,15 @@ pub enum LearnerError {
         source: csv::Error,
     },
 
+    /// A metrics CSV that cannot be plotted: a column missing from the header, a value that
+    /// is not a number.
+    #[error("metrics CSV {path}: {reason}")]
+    MetricsFormat { path: PathBuf, reason: String },
+
+    /// plotters or the PNG encoder failed while drawing a figure.
+    #[error("drawing {path}: {reason}")]
+    Plot { path: PathBuf, reason: String },
+
     #[error(transparent)]
     Config(#[from] common::ConfigError),
 
@@ -88,7 +97,11 @@ impl LearnerError {
     pub fn is_user_error(&self) -> bool {
         !matches!(
             self,
-            Self::NonFinite { .. } | Self::Tensor { .. } | Self::Encode { .. } | Self::Ipc(_)
+            Self::NonFinite { .. }
+                | Self::Tensor { .. }
+                | Self::Encode { .. }
+                | Self::Plot { .. }
+                | Self::Ipc(_)
         )
     }
 }

@@ -13,11 +13,13 @@
 //! - A checkpoint file is whole or refused; saving never destroys the previous good one.
 //!
 //! The runtime's loop, one rollout chunk at a time, is [`serve::serve`]: resume or start,
-//! update, append a metrics row, publish the weights, checkpoint when due.
+//! update, append a metrics row, checkpoint when due, publish the weights, and after a
+//! checkpoint redraw the learning curves ([`curves`]).
 
 pub mod adam;
 pub mod checkpoint;
 pub mod cli;
+pub mod curves;
 mod error;
 pub mod gae;
 pub mod loss;
@@ -56,6 +58,8 @@ pub fn tune_allocator() {
 pub fn run(command: &Command, out: &mut dyn Write) -> Result<(), LearnerError> {
     match command {
         Command::Inspect(args) => cli::inspect::inspect(args, out),
+        Command::Export(args) => cli::export::export(args, out),
+        Command::Plot(args) => cli::plot::plot(args, out),
         Command::Serve(args) => serve::serve(args),
     }
 }

@@ -56,6 +56,21 @@ pub struct SampledAction {
     pub logprob: f32,
 }
 
+/// The actor as `common::policy` lays it out: observation mean and variance, then the actor's
+/// parameters (the first `actor_len` of the learner's flat order).
+pub(crate) fn shipped_weights(
+    obs_norm: &RunningMeanStd,
+    shape: &NetShape,
+    params: &[f32],
+) -> Vec<f32> {
+    let (mean, var) = obs_norm.shipped();
+    let mut w = Vec::with_capacity(mean.len() + var.len() + shape.actor_len());
+    w.extend(mean);
+    w.extend(var);
+    w.extend_from_slice(&params[..shape.actor_len()]);
+    w
+}
+
 /// The PPO learner: actor, critic, optimizer, observation statistics and RNG.
 pub struct Learner {
     pub(crate) ppo: PpoConfig,
@@ -67,6 +82,10 @@ pub struct Learner {
     pub(crate) obs_norm: RunningMeanStd,
     pub(crate) rng: Rng,
     pub(crate) counters: Counters,
+    /// SPEC S8: train only on transitions the estimator assigned to this class (a terrain
+    /// specialist); `None`: on all. Set by the caller, not checkpointed: it is the role the
+    /// learner plays in a run, not learned state.
+    train_class: Option<u8>,
     train_device: Device,
     eval_device: Device,
 }
@@ -169,6 +188,7 @@ impl Learner {
             obs_norm: state.obs_norm,
             rng: state.rng,
             counters: state.counters,
+            train_class: None,
             train_device: eval_device.clone().autodiff(),
             eval_device,
         })
@@ -180,6 +200,12 @@ impl Learner {
 
     pub fn counters(&self) -> Counters {
         self.counters
+    }
+
+    /// Makes this learner a terrain specialist (SPEC S8): it trains only on transitions whose
+    /// estimator class is `class`; `None` trains on all.
+    pub fn train_only_on(&mut self, class: Option<u8>) {
+        self.train_class = class;
     }
 
     pub fn policy_version(&self) -> u32 {
@@ -195,12 +221,7 @@ impl Learner {
     /// The actor in the `common::policy` flat layout: observation mean and variance, dense
     /// layers, log-std. What the `policy` service ships and `common::Policy` evaluates.
     pub fn policy_weights(&self) -> Vec<f32> {
-        let (mean, var) = self.obs_norm.shipped();
-        let mut w = Vec::with_capacity(self.layout().len());
-        w.extend(mean);
-        w.extend(var);
-        w.extend_from_slice(&self.params[..self.shape.actor_len()]);
-        w
+        shipped_weights(&self.obs_norm, &self.shape, &self.params)
     }
 
     /// The learning rate the next update will use (SPEC S6: 3e-4, linear decay to 0 over
@@ -348,13 +369,21 @@ impl Learner {
         // versions old still shape the advantages of their neighbours but are not trained on.
         let version = self.counters.policy_version;
         let lag = |t: &Transition| version.saturating_sub(t.policy_version);
-        let mut b_inds: Vec<usize> = (0..batch_size)
+        let fresh: Vec<usize> = (0..batch_size)
             .filter(|&i| lag(&transitions[i]) <= self.ppo.max_policy_lag)
             .collect();
-        let stale = batch_size - b_inds.len();
+        let stale = batch_size - fresh.len();
+        // SPEC S8: a specialist's other-terrain transitions likewise only shape advantages.
+        let mut b_inds: Vec<usize> = fresh
+            .into_iter()
+            .filter(|&i| {
+                self.train_class
+                    .is_none_or(|c| transitions[i].estimated_class == c)
+            })
+            .collect();
         if b_inds.is_empty() {
             return Err(LearnerError::rollout(format!(
-                "all {batch_size} transitions are more than {} policy versions old",
+                "none of {batch_size} transitions to train on: {stale} more than {} policy versions old, the rest of other terrain classes",
                 self.ppo.max_policy_lag
             )));
         }
@@ -866,6 +895,31 @@ pub(crate) mod tests {
 
         assert_eq!(learner.policy_weights(), before);
         assert_eq!(learner.counters(), Counters::default());
+    }
+
+    /// SPEC S8: a specialist trains only on its terrain class's transitions; a chunk with
+    /// none of them changes nothing.
+    #[test]
+    fn a_specialist_trains_only_on_its_terrain_class() {
+        let cfg = small_config(64, 10);
+        let mut flat = learner(&cfg, 10);
+        flat.train_only_on(Some(0));
+        let mut rollout = OwnedRollout::acted_by(&flat, 16, 4, 11);
+        rollout
+            .transitions
+            .iter_mut()
+            .for_each(|t| t.estimated_class = 1);
+        let before = flat.policy_weights();
+        let e = flat
+            .update(&rollout.view())
+            .expect_err("no flat transitions");
+        assert!(e.to_string().contains("other terrain classes"), "{e}");
+        assert_eq!(flat.policy_weights(), before, "left unchanged");
+        rollout.transitions[..16]
+            .iter_mut()
+            .for_each(|t| t.estimated_class = 0);
+        flat.update(&rollout.view()).expect("16 flat transitions");
+        assert_ne!(flat.policy_weights(), before);
     }
 
     /// Async mode: transitions older than `max-policy-lag` versions are not trained on.

@@ -1,26 +1,85 @@
 //! `learner-proc serve`: the learner inside a run. Publishes its current policy, then for
 //! every rollout chunk on `rollout`: one PPO update, the new policy on `policy/general`, a
-//! metrics row, and a checkpoint every `ppo.checkpoint-every` updates. Resumes from the run's
-//! newest good checkpoint when there is one, continuing the policy-version sequence.
+//! metrics row, and a checkpoint every `ppo.checkpoint-every` updates, after which it redraws
+//! `<out>/curves.png` (at most twice a minute, and at the end).
+//!
+//! What it starts from, first match wins: `--checkpoint` (resume that file exactly); the run
+//! directory's newest good checkpoint (resume, continuing the policy-version sequence);
+//! `--init-from` (a warm start, [`Learner::warm_start`]); a new learner from the config's seed.
+//! The run's own checkpoints beat `--init-from` so that a learner restarted with the same
+//! command line continues its run instead of warm-starting it again.
 
-use crate::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout};
+use crate::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout, curves};
+use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
 use common::wire::{PolicyHeader, RolloutHeader};
 use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout, Transition};
 use std::path::{Path, PathBuf};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Arguments of `serve` (the launcher passes them).
 #[derive(Debug, clap::Args)]
 pub struct ServeArgs {
     #[command(flatten)]
     pub join: common::cli::JoinArgs,
-    /// The run directory: metrics.csv and checkpoints/ go here.
+    /// The run directory: metrics.csv, curves.png and checkpoints/ go here.
     #[arg(long)]
     pub out: PathBuf,
     /// Start from this checkpoint instead of the run's newest.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
+    /// Warm start: take the actor, critic and observation statistics of this checkpoint file
+    /// but start counters, optimizer, learning-rate schedule and RNG afresh (e.g. the general
+    /// model from the flat model). Its network must match `ppo.hidden`. Ignored when the run
+    /// directory already has checkpoints: a restarted learner resumes those.
+    #[arg(long, conflicts_with = "checkpoint")]
+    pub init_from: Option<PathBuf>,
+    /// Only check that this learner can start (config, checkpoint, network shape), print
+    /// what it would start from, and exit without joining the run. `lavatube swap-learner`
+    /// runs this before it stops the old learner.
+    #[arg(long)]
+    pub check: bool,
+    /// The policy slot this learner fills: `general` trains on every transition, `flat` and
+    /// `rough` only on those the estimator assigned to their terrain (SPEC S8).
+    #[arg(long, default_value = "general", value_parser = PolicySlot::parse)]
+    pub slot: PolicySlot,
+    /// Serve the starting policy without training (`run.frozen`, for evaluation): every
+    /// rollout chunk is answered with the same weights; no update, no checkpoint.
+    #[arg(long)]
+    pub frozen: bool,
+}
+
+/// How many transitions were acted on by a policy 0, 1, 2, 3, 4–7 and 8 or more versions
+/// older than the learner's (DESIGN §3: policy lag), over the learner's life.
+#[derive(Debug, Default)]
+struct LagHistogram([u64; 6]);
+
+impl LagHistogram {
+    const LABELS: [&'static str; 6] = ["0", "1", "2", "3", "4-7", "8+"];
+
+    fn add(&mut self, learner_version: u32, transitions: &[Transition]) {
+        for t in transitions {
+            let lag = learner_version.saturating_sub(t.policy_version);
+            let bin = match lag {
+                0..=3 => lag as usize,
+                4..=7 => 4,
+                _ => 5,
+            };
+            self.0[bin] += 1;
+        }
+    }
+
+    /// `0: 97.0%, 1: 3.0%, …` (bins with no transitions left out).
+    fn summary(&self) -> String {
+        let total = self.0.iter().sum::<u64>().max(1) as f64;
+        Self::LABELS
+            .iter()
+            .zip(self.0)
+            .filter(|(_, n)| *n > 0)
+            .map(|(l, n)| format!("{l}: {:.1}%", 100.0 * n as f64 / total))
+            .collect::<Vec<_>>()
+            .join(", ")
+    }
 }
 
 /// Per-env running episode sums, so episode outcomes can be reported from transitions alone.
@@ -57,53 +116,139 @@ impl EpisodeTracker {
     }
 }
 
+/// Publishes the learner's policy; `chunks_seen` tells a waiting sync-mode sim which of its
+/// rollout chunks this learner has consumed.
 fn publish(
     tx: &Sender<f32, PolicyHeader>,
     learner: &Learner,
+    slot: PolicySlot,
     obs_clip: f64,
+    chunks_seen: u64,
 ) -> Result<(), LearnerError> {
     let c = learner.counters();
     let mut h = PolicyHeader::new(
         learner.layout(),
         learner.policy_version(),
-        0,
+        slot.index() as u32,
         obs_clip as f32,
     );
     h.updates = c.update;
     h.env_steps = c.global_step;
+    h.chunks_seen = chunks_seen;
     tx.send(h, &learner.policy_weights())?;
     Ok(())
 }
 
-/// The learner to start with: a named checkpoint, else the run's newest good one, else new.
-fn start(cfg: &Config, args: &ServeArgs, ckpt_dir: &Path) -> Result<Learner, LearnerError> {
+/// The learner to start with, in the order the module documentation gives, with a line
+/// saying which.
+fn start(
+    cfg: &Config,
+    args: &ServeArgs,
+    ckpt_dir: &Path,
+) -> Result<(Learner, String), LearnerError> {
+    let from = |learner: &Learner, path: &Path| {
+        format!(
+            "resumes {} at version {} (optimizer digest {:08x})",
+            path.display(),
+            learner.policy_version(),
+            learner.adam.digest()
+        )
+    };
     if let Some(path) = &args.checkpoint {
-        return Learner::load_checkpoint(cfg, path);
+        let learner = Learner::load_checkpoint(cfg, path)?;
+        let said = from(&learner, path);
+        return Ok((learner, said));
     }
     if crate::checkpoint::list(ckpt_dir)
         .map(|l| !l.is_empty())
         .unwrap_or(false)
     {
         let (learner, path) = Learner::resume(cfg, ckpt_dir)?;
-        tracing::info!(checkpoint = %path.display(), version = learner.policy_version(), "resumed");
-        return Ok(learner);
+        let mut said = from(&learner, &path);
+        if let Some(init) = &args.init_from {
+            said += &format!(
+                " (not --init-from {}: the run directory has checkpoints)",
+                init.display()
+            );
+        }
+        return Ok((learner, said));
+    }
+    if let Some(path) = &args.init_from {
+        let learner = Learner::warm_start(cfg, path)?;
+        let said = format!(
+            "warm-starts from {}: its weights and observation statistics, fresh counters, \
+             optimizer and learning-rate schedule",
+            path.display()
+        );
+        return Ok((learner, said));
     }
     let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
-    Learner::new(cfg, layout, cfg.run.seed)
+    let learner = Learner::new(cfg, layout, cfg.run.seed)?;
+    Ok((learner, "starts a new policy".into()))
+}
+
+/// `<out>/curves.png`, redrawn from the metrics after a checkpoint (once the policy went
+/// out, so no sim waits for it), at most every [`Self::MIN_INTERVAL`], and at the end. A
+/// figure that cannot be drawn is logged, never a reason to stop training.
+struct CurvesFigure {
+    png: PathBuf,
+    drawn: Option<Instant>,
+}
+
+impl CurvesFigure {
+    /// Reading, drawing and encoding 20k updates took ~0.4 s of one core here (700 updates
+    /// ~0.2 s), and checkpoints may come every update (`ppo.checkpoint-every` defaults to 1):
+    /// redrawing at each would take a real share of the two cores from the sim and the update.
+    const MIN_INTERVAL: Duration = Duration::from_secs(30);
+
+    fn new(out: &Path) -> Self {
+        Self {
+            png: out.join(curves::FILE),
+            drawn: None,
+        }
+    }
+
+    /// Redraws unless the last drawing is younger than the interval and `force` is false.
+    fn redraw(&mut self, metrics: &Path, force: bool) {
+        if !force && self.drawn.is_some_and(|t| t.elapsed() < Self::MIN_INTERVAL) {
+            return;
+        }
+        // A learner stopped before its first update has nothing to draw.
+        if std::fs::metadata(metrics).is_ok_and(|m| m.len() == 0) {
+            return;
+        }
+        if let Err(e) = curves::plot(metrics, &self.png) {
+            tracing::warn!(error = %e, "learning curves not redrawn");
+        }
+        self.drawn = Some(Instant::now());
+    }
 }
 
 pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     let cfg = Config::load(&args.join.config)?;
     let ckpt_dir = args.out.join("checkpoints");
     std::fs::create_dir_all(&ckpt_dir).map_err(LearnerError::io("create", &ckpt_dir))?;
-    let mut learner = start(&cfg, args, &ckpt_dir)?;
+    let (mut learner, from) = start(&cfg, args, &ckpt_dir)?;
+    if args.check {
+        #[allow(clippy::print_stdout)] // `--check` reports on stdout, for the launcher
+        {
+            println!("{from}");
+        }
+        return Ok(());
+    }
+    tracing::info!("learner {from}");
     let mut log = MetricsLog::open(&args.out)?;
-    let bus = Bus::connect(&args.join.run_id, "learner")?;
+    let mut figure = CurvesFigure::new(&args.out);
+    learner.train_only_on(args.slot.class());
+    let bus = Bus::connect(&args.join.run_id, args.slot.learner_name())?;
     let control = bus.control_listener()?;
     let rollout_rx = bus.receiver::<Transition, RolloutHeader>(&ipc::ROLLOUT, None)?;
-    let policy_tx =
-        bus.sender::<f32, PolicyHeader>(&ipc::POLICY, Some("general"), learner.layout().len())?;
-    publish(&policy_tx, &learner, cfg.ppo.obs_clip)?;
+    let policy_tx = bus.sender::<f32, PolicyHeader>(
+        &ipc::POLICY,
+        Some(args.slot.name()),
+        learner.layout().len(),
+    )?;
+    publish(&policy_tx, &learner, args.slot, cfg.ppo.obs_clip, 0)?;
     tracing::info!(
         version = learner.policy_version(),
         params = learner.layout().len(),
@@ -112,6 +257,17 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
 
     let mut tracker = EpisodeTracker::default();
     let (mut next_chunk, mut missed) = (None::<u64>, 0u64);
+    let mut lags = LagHistogram::default();
+    // Every consumed chunk is answered with a policy, so a sync-mode sim never waits in vain.
+    let answer = |learner: &Learner, chunks_seen: u64| {
+        publish(
+            &policy_tx,
+            learner,
+            args.slot,
+            cfg.ppo.obs_clip,
+            chunks_seen,
+        )
+    };
     let mut done = false;
     while !done && !bus.stop_requested(&control) {
         policy_tx.update_connections()?;
@@ -137,20 +293,42 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 tracing::warn!(missed, "rollout chunks missed");
             }
             next_chunk = Some(h.chunk + 1);
+            done = h.env_steps >= cfg.run.total_steps;
+            if args.frozen {
+                answer(&learner, h.chunk + 1)?;
+                continue;
+            }
             let (transitions, boot) = data.split_at(t * n);
             let bootstrap_obs: Vec<[f32; OBS_DIM]> = boot.iter().map(|b| b.obs).collect();
             let episodes = tracker.feed(transitions);
-            let m = learner.update(&Rollout {
+            lags.add(learner.policy_version(), transitions);
+            let updated = learner.update(&Rollout {
                 transitions,
                 bootstrap_obs: &bootstrap_obs,
                 episodes: &episodes,
-            })?;
+            });
+            let m = match updated {
+                Ok(m) => m,
+                // One bad chunk (all stale, non-finite loss) is skipped, not fatal; the
+                // policy is published anyway so a waiting sync-mode sim goes on.
+                Err(e @ (LearnerError::Rollout { .. } | LearnerError::NonFinite { .. })) => {
+                    tracing::warn!(chunk = h.chunk, error = %e, "chunk not trained on");
+                    answer(&learner, h.chunk + 1)?;
+                    continue;
+                }
+                Err(e) => return Err(e),
+            };
             log.append(&m)?;
-            publish(&policy_tx, &learner, cfg.ppo.obs_clip)?;
-            let c = learner.counters();
+            // Checkpoint before publishing: every published version can be resumed, so a
+            // learner restarted after kill -9 continues the version sequence.
             if learner.checkpoint_due() {
                 learner.save_checkpoint(&ckpt_dir)?;
             }
+            answer(&learner, h.chunk + 1)?;
+            if learner.checkpoint_due() {
+                figure.redraw(log.path(), false);
+            }
+            let c = learner.counters();
             tracing::info!(
                 update = c.update,
                 version = m.policy_version,
@@ -161,19 +339,121 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 sps = m.samples_per_second as u64,
                 "update"
             );
-            if h.env_steps >= cfg.run.total_steps {
-                done = true;
-            }
         }
     }
-    learner.save_checkpoint(&ckpt_dir)?;
-    tracing::info!(updates = learner.counters().update, missed, "learner done");
+    if !args.frozen {
+        learner.save_checkpoint(&ckpt_dir)?;
+    }
+    figure.redraw(log.path(), true);
+    tracing::info!(
+        updates = learner.counters().update,
+        version = learner.policy_version(),
+        chunks_missed = missed,
+        "learner done; policy lag of the transitions received (versions: share): {}",
+        lags.summary()
+    );
     Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cli::{Cli, Command};
+    use crate::ppo::tests::{OwnedRollout, learner, small_config};
+    use clap::Parser;
+
+    /// `serve` arguments as the command line gives them.
+    fn serve_args(extra: &[&str]) -> Result<ServeArgs, clap::Error> {
+        let argv = [
+            "learner-proc",
+            "serve",
+            "--config",
+            "c.toml",
+            "--run-id",
+            "t",
+            "--out",
+            "o",
+        ];
+        let cli = Cli::try_parse_from(argv.iter().chain(extra))?;
+        let Command::Serve(args) = cli.command else {
+            panic!("parsed as another command: {:?}", cli.command)
+        };
+        Ok(args)
+    }
+
+    /// The first checkpoint draws, the next ones within the interval do not, the last does.
+    #[test]
+    fn curves_are_redrawn_at_most_every_interval_and_at_the_end() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let metrics = dir.path().join(MetricsLog::FILE);
+        std::fs::write(&metrics, "global_step,mean_episode_return,success_rate,policy_loss,value_loss,entropy,approx_kl,clip_fraction,explained_variance\n")
+            .expect("write");
+        let mut figure = CurvesFigure::new(dir.path());
+        figure.redraw(&metrics, false);
+        assert!(figure.png.exists(), "first checkpoint");
+        std::fs::remove_file(&figure.png).expect("rm");
+        figure.redraw(&metrics, false);
+        assert!(!figure.png.exists(), "too soon");
+        figure.redraw(&metrics, true);
+        assert!(figure.png.exists(), "the end");
+    }
+
+    #[test]
+    fn checkpoint_and_init_from_exclude_each_other() {
+        let e = serve_args(&["--checkpoint", "a.ckpt", "--init-from", "b.ckpt"])
+            .expect_err("both given");
+        assert_eq!(e.kind(), clap::error::ErrorKind::ArgumentConflict);
+    }
+
+    /// `--init-from` warm-starts a run directory without checkpoints; once the run has its
+    /// own, a learner restarted with the same arguments resumes them instead.
+    #[test]
+    fn the_runs_own_checkpoints_beat_init_from() {
+        let cfg = small_config(128, 10);
+        let source_dir = tempfile::tempdir().expect("tempdir");
+        let mut source = learner(&cfg, 31);
+        let r = OwnedRollout::acted_by(&source, 64, 4, 32);
+        source.update(&r.view()).expect("update");
+        let source_path = source.save_checkpoint(source_dir.path()).expect("save");
+        let run = tempfile::tempdir().expect("tempdir");
+        let ckpt_dir = run.path().join("checkpoints");
+        let path = source_path.to_str().expect("utf-8 temp path");
+        let args = serve_args(&["--init-from", path]).expect("args");
+
+        let (mut warm, said) = start(&cfg, &args, &ckpt_dir).expect("warm start");
+        assert!(said.starts_with("warm-starts from"), "{said}");
+        assert_eq!(warm.counters(), crate::Counters::default());
+        assert_eq!(warm.policy_weights(), source.policy_weights());
+
+        warm.update(&r.view()).expect("update");
+        warm.save_checkpoint(&ckpt_dir).expect("save");
+        let (resumed, said) = start(&cfg, &args, &ckpt_dir).expect("restart");
+        assert!(said.contains("not --init-from"), "{said}");
+        assert_eq!(resumed.checkpoint(), warm.checkpoint());
+    }
+
+    #[test]
+    fn lag_histogram_bins_versions_behind() {
+        let acted = |v| Transition {
+            policy_version: v,
+            ..Transition::default()
+        };
+        let mut h = LagHistogram::default();
+        h.add(
+            10,
+            &[
+                acted(10),
+                acted(10),
+                acted(9),
+                acted(5),
+                acted(1),
+                acted(11),
+            ],
+        );
+        // 11 is from a newer policy than the learner's (a restarted learner): lag 0.
+        assert_eq!(h.0, [3, 1, 0, 0, 1, 1]);
+        assert_eq!(h.summary(), "0: 50.0%, 1: 16.7%, 4-7: 16.7%, 8+: 16.7%");
+    }
 
     #[test]
     fn episodes_are_summed_across_chunks() {

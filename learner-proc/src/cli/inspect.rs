@@ -21,11 +21,6 @@ pub fn inspect(args: &InspectArgs, out: &mut dyn Write) -> Result<(), LearnerErr
     } else {
         (checkpoint::read(&args.path)?, args.path.clone(), Vec::new())
     };
-    let widths: Vec<String> = std::iter::once(ckpt.layout.obs_dim)
-        .chain(ckpt.layout.hidden.iter().copied())
-        .chain([ckpt.layout.act_dim])
-        .map(|w| w.to_string())
-        .collect();
     let mut report = String::new();
     for e in &skipped {
         report += &format!("skipped          {e}\n");
@@ -44,7 +39,7 @@ pub fn inspect(args: &InspectArgs, out: &mut dyn Write) -> Result<(), LearnerErr
         ckpt.counters.global_step,
         ckpt.counters.policy_version,
         ckpt.learning_rate,
-        widths.join(" -> "),
+        checkpoint::widths(&ckpt.layout),
         ckpt.layout.len() - 2 * ckpt.layout.obs_dim,
         ckpt.params.len(),
         ckpt.adam.step,
