@@ -9,14 +9,12 @@ use crate::{EstimatorError, Result};
 use common::AreaKind;
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::register_font;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
-use std::sync::OnceLock;
 
 const FLAT: RGBColor = RGBColor(31, 119, 180);
 const ROUGH: RGBColor = RGBColor(214, 39, 40);
-const FONT: &str = "sans-serif";
+use common::plot::FONT;
 const GRID: RGBColor = RGBColor(242, 242, 242);
 
 fn area_color(area: AreaKind) -> RGBColor {
@@ -28,19 +26,7 @@ fn area_color(area: AreaKind) -> RGBColor {
 
 /// Registers the bundled font once per process.
 fn ensure_font(path: &Path) -> Result<()> {
-    static REGISTERED: OnceLock<bool> = OnceLock::new();
-    let ok = *REGISTERED.get_or_init(|| {
-        register_font(FONT, FontStyle::Normal, dejavu::sans::regular()).is_ok()
-            && register_font(FONT, FontStyle::Bold, dejavu::sans::bold()).is_ok()
-    });
-    if ok {
-        Ok(())
-    } else {
-        Err(plot_error(
-            path,
-            "the bundled DejaVu font could not be parsed",
-        ))
-    }
+    common::plot::register_fonts().map_err(|e| plot_error(path, e))
 }
 
 fn plot_error(path: &Path, reason: impl std::fmt::Display) -> EstimatorError {

@@ -3,9 +3,10 @@
 //! produce the same transitions from the same seed.
 
 use crate::Batch;
-use crate::controllers::PolicyController;
 use crate::env::StepInfo;
+use crate::switching::PolicyPool;
 use crate::task::Ending;
+use common::config::PolicySlot;
 use common::wire::{self, EnvTick};
 use common::{ACT_DIM, OBS_DIM, Transition};
 
@@ -16,10 +17,15 @@ pub struct Actor {
     next_obs: Vec<[f32; OBS_DIM]>,
     actions: Vec<[f32; ACT_DIM]>,
     logprobs: Vec<f32>,
+    /// The slot and version that acted in the last step, per env.
+    acted: Vec<(PolicySlot, u32)>,
     /// What the last step produced, per env.
     pub infos: Vec<StepInfo>,
     pub episodes: u64,
     pub successes: u64,
+    /// Sums of successful episodes' lengths (ticks) and their squares (reach-time stats).
+    pub reach_ticks: u64,
+    pub reach_ticks_sq: u64,
 }
 
 impl Actor {
@@ -32,38 +38,52 @@ impl Actor {
             obs,
             actions: vec![[0.0; ACT_DIM]; n],
             logprobs: vec![0.0; n],
+            acted: vec![(PolicySlot::General, 0); n],
             infos: vec![StepInfo::default(); n],
             episodes: 0,
             successes: 0,
+            reach_ticks: 0,
+            reach_ticks_sq: 0,
         }
     }
 
-    /// Samples every env's action, steps the batch and appends one transition per env to
-    /// `chunk`. `classes` holds the estimator's current class per env.
+    /// Samples every env's action from the pool (env `i` asks for slot `wanted[i]`), steps
+    /// the batch and appends one transition per env to `chunk`. `classes` holds the
+    /// estimator's current class per env.
     pub fn tick(
         &mut self,
         batch: &mut Batch,
-        ctrl: &mut PolicyController,
-        version: u32,
+        pool: &mut PolicyPool,
+        wanted: &[PolicySlot],
         classes: &[u8],
         chunk: &mut Vec<Transition>,
     ) {
         for (i, o) in self.obs.iter().enumerate() {
-            (self.actions[i], self.logprobs[i]) = ctrl.sample(o);
+            let w = wanted.get(i).copied().unwrap_or(PolicySlot::General);
+            let (slot, version, action, logprob) = pool.sample(w, o);
+            (self.actions[i], self.logprobs[i], self.acted[i]) = (action, logprob, (slot, version));
         }
         batch.step(&self.actions, &mut self.infos, &mut self.next_obs);
         for (i, env) in batch.envs.iter().enumerate() {
             let info = &self.infos[i];
             let end = info.ending;
             self.episodes += u64::from(end.is_some());
-            self.successes += u64::from(end == Some(Ending::Success));
+            if end == Some(Ending::Success) {
+                let t = u64::from(info.episode_steps);
+                (self.successes, self.reach_ticks, self.reach_ticks_sq) = (
+                    self.successes + 1,
+                    self.reach_ticks + t,
+                    self.reach_ticks_sq + t * t,
+                );
+            }
             chunk.push(Transition {
                 obs: self.obs[i],
                 action: self.actions[i],
                 final_obs: info.final_obs,
                 logprob: self.logprobs[i],
                 reward: info.reward as f32,
-                policy_version: version,
+                policy_version: self.acted[i].1,
+                slot: self.acted[i].0.index() as u8,
                 env: i as u32,
                 terminated: u8::from(end.is_some_and(|e| e.terminated())),
                 truncated: u8::from(end.is_some_and(|e| e.truncated())),
@@ -87,7 +107,12 @@ impl Actor {
 
     /// The telemetry of the last step, one entry per env.
     pub fn env_ticks(&self, batch: &Batch, out: &mut [EnvTick]) {
-        for ((t, env), info) in out.iter_mut().zip(&batch.envs).zip(&self.infos) {
+        for (((t, env), info), acted) in out
+            .iter_mut()
+            .zip(&batch.envs)
+            .zip(&self.infos)
+            .zip(&self.acted)
+        {
             let p = env.pose();
             let events = info.ending.map_or(0, |e| {
                 let kind = if e.terminated() {
@@ -111,6 +136,7 @@ impl Actor {
                 env: env.id as u32,
                 area: env.area.code(),
                 events,
+                slot: acted.0.index() as u8,
                 pos: p.pos.map(|v| v as f32),
                 euler: p.euler.map(|v| v as f32),
                 sin_pitch: p.euler[0].sin() as f32,

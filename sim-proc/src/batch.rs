@@ -2,24 +2,24 @@
 //! RNG stream, so the result does not depend on the thread count.
 
 use crate::env::{Env, SharedTerrain, StepInfo};
+use crate::pool::Pool;
 use common::config::SimConfig;
 use common::{ACT_DIM, OBS_DIM};
+use std::sync::{Mutex, PoisonError};
 
 /// All envs of a run.
 pub struct Batch {
     pub envs: Vec<Env>,
-    threads: usize,
+    pool: Pool,
 }
 
 impl Batch {
     pub fn new(cfg: &SimConfig, terrain: &SharedTerrain, seed: u64) -> Self {
-        let envs = (0..cfg.num_envs())
+        let envs: Vec<Env> = (0..cfg.num_envs())
             .map(|i| Env::new(i, cfg, terrain, seed))
             .collect();
-        Self {
-            envs,
-            threads: cfg.threads.max(1),
-        }
+        let pool = Pool::new(cfg.threads.min(envs.len()));
+        Self { envs, pool }
     }
 
     pub fn len(&self) -> usize {
@@ -37,48 +37,32 @@ impl Batch {
     }
 
     /// Steps every env with its action, writing each env's step info and next observation.
+    /// The envs are cut into one contiguous run per thread.
     pub fn step(
         &mut self,
         actions: &[[f32; ACT_DIM]],
         infos: &mut [StepInfo],
         obs: &mut [[f32; OBS_DIM]],
     ) {
-        let n = self.envs.len();
-        let threads = self.threads.min(n).max(1);
-        let chunk = n.div_ceil(threads);
-        let work = |envs: &mut [Env],
-                    acts: &[[f32; ACT_DIM]],
-                    infos: &mut [StepInfo],
-                    obs: &mut [[f32; OBS_DIM]]| {
-            for (((e, a), i), o) in envs
-                .iter_mut()
-                .zip(acts)
-                .zip(infos.iter_mut())
-                .zip(obs.iter_mut())
-            {
-                *i = e.step(*a);
-                *o = e.observe();
-            }
-        };
-        if threads == 1 {
-            work(&mut self.envs, actions, infos, obs);
-            return;
-        }
-        std::thread::scope(|s| {
-            let parts = self
-                .envs
-                .chunks_mut(chunk)
-                .zip(actions.chunks(chunk))
-                .zip(infos.chunks_mut(chunk))
-                .zip(obs.chunks_mut(chunk));
-            let mut parts: Vec<_> = parts.collect();
-            // The calling thread takes the last chunk instead of idling.
-            let last = parts.pop();
-            for (((e, a), i), o) in parts {
-                s.spawn(move || work(e, a, i, o));
-            }
-            if let Some((((e, a), i), o)) = last {
-                work(e, a, i, o);
+        let chunk = self.envs.len().div_ceil(self.pool.parts()).max(1);
+        // Each part is taken by exactly one thread; the mutex only proves that to the compiler.
+        let parts: Vec<Mutex<Option<_>>> = self
+            .envs
+            .chunks_mut(chunk)
+            .zip(actions.chunks(chunk))
+            .zip(infos.chunks_mut(chunk))
+            .zip(obs.chunks_mut(chunk))
+            .map(|part| Mutex::new(Some(part)))
+            .collect();
+        self.pool.run(&|k| {
+            let part = parts
+                .get(k)
+                .and_then(|p| p.lock().unwrap_or_else(PoisonError::into_inner).take());
+            if let Some((((envs, acts), infos), obs)) = part {
+                for (((e, a), i), o) in envs.iter_mut().zip(acts).zip(infos).zip(obs) {
+                    *i = e.step(*a);
+                    *o = e.observe();
+                }
             }
         });
     }

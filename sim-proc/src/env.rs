@@ -177,8 +177,9 @@ impl Env {
     }
 
     /// Runs the physics substeps. Returns false when the state went non-finite: rapier then
-    /// quarantines the bodies, or (for a multibody) its solver panics on the degenerate
-    /// system; either way only this env's world is lost, and the caller respawns it.
+    /// quarantines the bodies. A panic inside rapier on a degenerate state is caught as well
+    /// (its multibody solver did panic so); either way only this env's world is lost, and the
+    /// caller respawns it.
     fn physics_substeps(&mut self) -> bool {
         let world = &mut self.world;
         let substeps = self.cfg.substeps;

@@ -10,9 +10,11 @@ pub mod actor;
 pub mod batch;
 pub mod controllers;
 pub mod env;
+mod pool;
 pub mod robot;
 pub mod serve;
 pub mod standalone;
+pub mod switching;
 pub mod task;
 pub mod terrain;
 

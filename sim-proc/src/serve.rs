@@ -1,15 +1,17 @@
-//! `sim-proc serve`: the simulator inside a run. Acts with the newest policy from the
-//! `policy` service, publishes every tick on `telemetry` and every T steps a rollout chunk on
-//! `rollout`, and reads terrain estimates. In sync mode it waits after each chunk for the
-//! policy learned from it (DESIGN §3); in async mode it never waits.
+//! `sim-proc serve`: the simulator inside a run. Acts with the newest policies from the
+//! `policy/<slot>` services (DESIGN §5: per env the configured slot, or the one switching
+//! picks from the estimator's classes), publishes every tick on `telemetry` and every T steps
+//! a rollout chunk on `rollout`. In sync mode it waits after each chunk for the policies
+//! learned from it (DESIGN §3); in async mode it never waits.
 
 use crate::Batch;
 use crate::actor::Actor;
 use crate::controllers::PolicyController;
 use crate::env::SharedTerrain;
+use crate::switching::{PolicyPool, Switcher};
 use crate::terrain::Terrain;
 use anyhow::Context;
-use common::config::LearnMode;
+use common::config::{LearnMode, PolicySlot};
 use common::ipc::{self, Bus, Receiver};
 use common::wire::{
     self, EnvTick, PolicyHeader, RolloutHeader, TerrainEstimate, TerrainHeader, TickHeader,
@@ -46,34 +48,114 @@ impl Nag {
     }
 }
 
-/// Applies the newest policy message, if any. Returns whether the weights changed.
-fn take_policy(
-    rx: &Receiver<f32, PolicyHeader>,
-    ctrl: &mut Option<PolicyController>,
-    version: &mut u32,
+/// The policy services the sim listens to, one per slot (DESIGN §5), and what it holds.
+struct Inbox {
+    rx: Vec<(PolicySlot, Receiver<f32, PolicyHeader>)>,
+    pool: Option<PolicyPool>,
+    /// Header of the policy each slot acts with; `learner` 0: none yet.
+    heads: [PolicyHeader; 3],
     seed: u64,
-) -> anyhow::Result<bool> {
-    let Some(sample) = rx.latest()? else {
-        return Ok(false);
-    };
-    let h = *sample.user_header();
-    let layout = h.layout();
-    if layout.obs_dim != OBS_DIM || layout.act_dim != ACT_DIM {
-        tracing::error!(
-            ?layout,
-            "policy with the wrong shape refused; keeping the current one"
-        );
-        return Ok(false);
+    /// Sample actions (training) or act with the mean (`sim.mean-actions`, evaluation).
+    stochastic: bool,
+}
+
+impl Inbox {
+    fn connect(bus: &Bus, seed: u64, stochastic: bool) -> anyhow::Result<Self> {
+        let rx = PolicySlot::ALL
+            .into_iter()
+            .map(|s| Ok((s, bus.receiver(&ipc::POLICY, Some(s.name()))?)))
+            .collect::<anyhow::Result<_>>()?;
+        Ok(Self {
+            rx,
+            pool: None,
+            heads: [PolicyHeader::default(); 3],
+            seed,
+            stochastic,
+        })
     }
-    match ctrl {
-        Some(c) if c.policy.layout() == &layout => c.policy.set_weights(sample.payload())?,
-        _ => {
-            let policy = Policy::new(layout, sample.payload().to_vec(), h.obs_clip)?;
-            *ctrl = Some(PolicyController::new(policy, true, seed));
+
+    /// Applies the newest message of every slot; returns the headers that arrived.
+    fn take(&mut self) -> anyhow::Result<Vec<(PolicySlot, PolicyHeader)>> {
+        let mut got = Vec::new();
+        for (slot, rx) in &self.rx {
+            let Some(sample) = rx.latest()? else {
+                continue;
+            };
+            let h = *sample.user_header();
+            let layout = h.layout();
+            if layout.obs_dim != OBS_DIM || layout.act_dim != ACT_DIM {
+                tracing::error!(
+                    slot = slot.name(),
+                    ?layout,
+                    "policy with the wrong shape refused; keeping the current one"
+                );
+                continue;
+            }
+            let fresh = |weights: &[f32]| -> anyhow::Result<PolicyController> {
+                let policy = Policy::new(layout.clone(), weights.to_vec(), h.obs_clip)?;
+                // The general slot keeps the run seed's stream, so a one-learner run acts as
+                // the single-process loop does (tests/sync_equivalence.rs).
+                let seed = self.seed.wrapping_add(slot.index() as u64);
+                Ok(PolicyController::new(policy, self.stochastic, seed))
+            };
+            match &mut self.pool {
+                None => {
+                    self.pool = Some(PolicyPool::new(*slot, fresh(sample.payload())?, h.version))
+                }
+                Some(pool) => match pool.get_mut(*slot) {
+                    Some(c) if c.policy.layout() == &layout => {
+                        c.policy.set_weights(sample.payload())?;
+                        pool.set_version(*slot, h.version);
+                    }
+                    _ => pool.insert(*slot, fresh(sample.payload())?, h.version),
+                },
+            }
+            let was = self.heads[slot.index()].learner;
+            if was != 0 && was != h.learner {
+                tracing::info!(
+                    slot = slot.name(),
+                    from = was,
+                    to = h.learner,
+                    version = h.version,
+                    "a new learner took over"
+                );
+            }
+            self.heads[slot.index()] = h;
+            got.push((*slot, h));
         }
+        Ok(got)
     }
-    *version = h.version;
-    Ok(true)
+
+    /// Sleeps until `slot`'s service signals or `timeout` passes.
+    fn wait(&self, slot: PolicySlot, timeout: Duration) -> anyhow::Result<()> {
+        if let Some((_, rx)) = self.rx.iter().find(|(s, _)| *s == slot) {
+            rx.wait(timeout)?;
+        }
+        Ok(())
+    }
+
+    /// The version of the policy a `general` env acts with (for headers and logs).
+    fn version(&self) -> u32 {
+        self.pool
+            .as_ref()
+            .map_or(0, |p| p.version(p.resolve(PolicySlot::General)))
+    }
+
+    /// The slots that have learners, with the learner each has now.
+    fn learners(&self) -> Vec<(PolicySlot, u32)> {
+        PolicySlot::ALL
+            .into_iter()
+            .map(|s| (s, self.heads[s.index()].learner))
+            .filter(|(_, l)| *l != 0)
+            .collect()
+    }
+}
+
+/// Sync mode (DESIGN §3): whether `h` answers the `sent` chunks — its learner has consumed
+/// the last one, or it comes from a new learner (restarted or swapped), which may never have
+/// received it; acting with a new learner's policy at once keeps the run going.
+fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
+    h.chunks_seen >= sent || h.learner != learner
 }
 
 /// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request.
@@ -82,7 +164,6 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     let t_steps = cfg.ppo.rollout_steps(n);
     let bus = Bus::connect(run_id, "sim")?;
     let control = bus.control_listener()?;
-    let policy_rx = bus.receiver::<f32, PolicyHeader>(&ipc::POLICY, Some("general"))?;
     let terrain_rx = bus.receiver::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None)?;
     let rollout_tx =
         bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, t_steps * n + n)?;
@@ -90,20 +171,20 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
 
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
     let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
-    let mut ctrl: Option<PolicyController> = None;
-    let mut version = 0u32;
-    tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, "waiting for the first policy");
+    let mut inbox = Inbox::connect(&bus, cfg.run.seed, !cfg.sim.mean_actions)?;
+    let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
+    tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
     let mut nag = Nag::new(Duration::from_secs(10));
-    while !take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)? {
+    while inbox.take()?.is_empty() {
         if bus.stop_requested(&control) {
             return Ok(());
         }
-        policy_rx.wait(POLL)?;
+        inbox.wait(PolicySlot::General, POLL)?;
         if let Some(secs) = nag.due() {
             tracing::warn!(secs, "still no policy");
         }
     }
-    tracing::info!(version, "first policy received");
+    tracing::info!(learners = ?inbox.learners(), "first policy received");
 
     let mut actor = Actor::new(&batch);
     let mut classes = vec![wire::CLASS_UNKNOWN; n];
@@ -112,11 +193,12 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     let (mut env_steps, mut chunk_id, mut tick) = (0u64, 0u64, 0u64);
     let started = Instant::now();
     'run: while env_steps < cfg.run.total_steps {
-        let chunk_version = version;
+        let chunk_version = inbox.version();
         chunk.clear();
         for _ in 0..t_steps {
-            let c = ctrl.as_mut().context("no policy")?;
-            actor.tick(&mut batch, c, version, &classes, &mut chunk);
+            let wanted = switcher.update(&classes);
+            let pool = inbox.pool.as_mut().context("no policy")?;
+            actor.tick(&mut batch, pool, wanted, &classes, &mut chunk);
             if let Some(est) = terrain_rx.latest()? {
                 for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
                     classes[e.env as usize] = e.class;
@@ -127,10 +209,13 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             let header = TickHeader {
                 tick,
                 env_steps,
-                policy_version: version,
+                policy_version: inbox.version(),
                 envs: n as u32,
                 episodes: actor.episodes,
                 successes: actor.successes,
+                sent_ns: wire::monotonic_ns(),
+                reach_ticks: actor.reach_ticks,
+                reach_ticks_sq: actor.reach_ticks_sq,
             };
             tele_tx.send(header, &ticks)?;
             tick += 1;
@@ -138,7 +223,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
                 break 'run;
             }
             if cfg.run.mode == LearnMode::Async {
-                take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)?;
+                inbox.take()?;
             }
         }
         actor.bootstrap(&mut chunk);
@@ -159,16 +244,26 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             "rollout sent"
         );
         if cfg.run.mode == LearnMode::Sync && env_steps < cfg.run.total_steps {
-            // DESIGN §3: on-policy PPO; wait for the weights learned from this chunk.
+            // DESIGN §3: on-policy PPO; wait until every learner answered this chunk.
             let mut nag = Nag::new(Duration::from_secs(30));
-            while version <= chunk_version {
+            let mut pending = inbox.learners();
+            loop {
+                for (slot, h) in inbox.take()? {
+                    pending.retain(|(s, learner)| *s != slot || !answers(&h, chunk_id, *learner));
+                }
+                let Some(&(slot, _)) = pending.first() else {
+                    break;
+                };
                 if bus.stop_requested(&control) {
                     break 'run;
                 }
-                policy_rx.wait(POLL)?;
-                take_policy(&policy_rx, &mut ctrl, &mut version, cfg.run.seed)?;
+                inbox.wait(slot, POLL)?;
                 if let Some(secs) = nag.due() {
-                    tracing::warn!(secs, version, "sync mode: still waiting for the learner");
+                    tracing::warn!(
+                        secs,
+                        slot = slot.name(),
+                        "sync mode: still waiting for the learner"
+                    );
                 }
             }
         }
@@ -178,9 +273,30 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
         env_steps,
         episodes = actor.episodes,
         successes = actor.successes,
-        policy_version = version,
+        policy_version = inbox.version(),
         env_steps_per_s = env_steps as f64 / secs,
         "sim done"
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sync_sim_waits_for_its_chunk_or_a_new_learner() {
+        let h = |chunks_seen, learner| PolicyHeader {
+            chunks_seen,
+            learner,
+            ..PolicyHeader::default()
+        };
+        // Three chunks sent (ids 0..=2), acting with learner 7's policy.
+        assert!(!answers(&h(2, 7), 3, 7), "learned from chunk 1 only");
+        assert!(answers(&h(3, 7), 3, 7), "learned from chunk 2");
+        assert!(
+            answers(&h(0, 8), 3, 7),
+            "a restarted learner's first policy"
+        );
+    }
 }

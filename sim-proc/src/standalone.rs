@@ -37,6 +37,11 @@ pub struct Args {
     /// Policy file for `--controller policy` (written by the learner's export).
     #[arg(long, required_if_eq("controller", "policy"))]
     pub weights: Option<PathBuf>,
+    /// With `--controller policy`: sample each action from the policy's Gaussian with the
+    /// run seed's stream, as `sim-proc` in a run does (same seed, same trajectories), instead
+    /// of acting with its mean.
+    #[arg(long, requires = "weights")]
+    pub sample: bool,
     /// Decision steps to run (per env).
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: u64,
@@ -49,14 +54,29 @@ pub struct Args {
     /// Override `run.seed`.
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Write the result (envs, ticks, stepping time, decision steps/s, episode outcomes) as
+    /// JSON here, for `lavatube bench`.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
     /// Join run ID over shared memory (as the launcher starts it) instead of running alone:
     /// act with the learner's policy and publish rollouts and telemetry.
-    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "steps", "telemetry"])]
+    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "sample", "steps", "telemetry", "json"])]
     pub run_id: Option<String>,
 }
 
+/// What `--json` writes. The time covers stepping only (not building the terrain), so it
+/// compares with the stepping rate a run's telemetry shows.
+#[derive(Debug, serde::Serialize)]
+struct JsonResult<'a> {
+    envs: usize,
+    #[serde(flatten)]
+    summary: &'a Summary,
+    stepping_seconds: f64,
+    decision_steps_per_s: f64,
+}
+
 /// Episode outcomes over a run.
-#[derive(Debug, Default, Clone, Copy, PartialEq)]
+#[derive(Debug, Default, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Summary {
     pub ticks: u64,
     pub episodes: u64,
@@ -175,7 +195,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
                 }
                 .into());
             }
-            Box::new(PolicyController::new(policy, false, cfg.run.seed))
+            Box::new(PolicyController::new(policy, args.sample, cfg.run.seed))
         }
     };
     tracing::info!(envs = batch.len(), steps = args.steps, controller = ?args.controller, "sim-proc standalone");
@@ -196,13 +216,24 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         None => drive(&mut batch, controller.as_mut(), args.steps, |_| Ok(()))?,
     };
     let secs = started.elapsed().as_secs_f64();
+    let decision_steps_per_s = (summary.ticks * batch.len() as u64) as f64 / secs;
     tracing::info!(
         ticks = summary.ticks,
         episodes = summary.episodes,
         successes = summary.successes,
         faults = summary.faults,
-        decision_steps_per_s = (summary.ticks * batch.len() as u64) as f64 / secs,
+        decision_steps_per_s,
         "done"
     );
+    if let Some(path) = &args.json {
+        let result = JsonResult {
+            envs: batch.len(),
+            summary: &summary,
+            stepping_seconds: secs,
+            decision_steps_per_s,
+        };
+        let text = serde_json::to_string_pretty(&result).context("cannot serialise the result")?;
+        std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    }
     Ok(summary)
 }
