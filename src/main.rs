@@ -1,13 +1,8 @@
-//! `lavatube`: starts, supervises and stops the simulator, learner and estimator processes
-//! of a run, and manages the shared-memory resources runs leave behind. It links only
-//! `common`; the processes are the binaries built beside it.
+//! The `lavatube` binary: parses the command line and runs a [`lavatube::commands`] command.
 
-// The launcher is a terminal program: printing is its job.
-#![allow(clippy::print_stdout, clippy::print_stderr)]
+#![allow(clippy::print_stderr)]
 
-mod commands;
-mod supervise;
-
+use lavatube::commands;
 use std::process::ExitCode;
 
 fn main() -> ExitCode {

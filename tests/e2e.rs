@@ -51,3 +51,26 @@ fn smoke_run_trains_through_shared_memory_and_cleans_up() {
         common::ipc::run_files(&run_id)
     );
 }
+
+#[test]
+fn two_specialists_learn_side_by_side_on_their_own_terrain() {
+    let run_id = format!("spec-{}", std::process::id());
+    let (code, output) = support::lavatube_run("tests/fixtures/specialists.toml", &run_id);
+    assert_eq!(code, 0, "launcher output:\n{output}");
+    let dir = support::root().join("target/e2e-runs").join(&run_id);
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("summary.json")).expect("summary.json"),
+    )
+    .expect("json");
+    for p in ["sim", "learner-flat", "learner-rough", "estimator"] {
+        assert_eq!(summary["exit"][p], "exit status: 0", "{p}: {summary}");
+    }
+    for slot in ["learner-flat", "learner-rough"] {
+        let metrics = std::fs::read_to_string(dir.join(slot).join("metrics.csv"))
+            .unwrap_or_else(|e| panic!("{slot} metrics: {e}"));
+        assert!(metrics.lines().count() >= 2, "{slot} trained:\n{metrics}");
+        let log = std::fs::read_to_string(dir.join("logs").join(format!("{slot}.log")))
+            .expect("learner log");
+        assert!(log.contains("learner starts a new policy"), "{log}");
+    }
+}

@@ -2,10 +2,12 @@
 //! gives bit-identical weights after k updates through shared memory as through a loop that
 //! runs the simulator and learner libraries in one process.
 
+use common::config::PolicySlot;
 use common::{ACT_DIM, Config, OBS_DIM, Policy, PolicyLayout};
 use learner_proc::{Learner, Rollout};
 use sim_proc::actor::Actor;
 use sim_proc::controllers::PolicyController;
+use sim_proc::switching::PolicyPool;
 use sim_proc::terrain::Terrain;
 use sim_proc::{Batch, SharedTerrain};
 
@@ -19,21 +21,17 @@ fn train_in_process(cfg: &Config) -> Learner {
     let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
     let policy =
         Policy::new(layout, learner.policy_weights(), cfg.ppo.obs_clip as f32).expect("policy");
-    let mut ctrl = PolicyController::new(policy, true, cfg.run.seed);
+    let ctrl = PolicyController::new(policy, true, cfg.run.seed);
+    let mut pool = PolicyPool::new(PolicySlot::General, ctrl, learner.policy_version());
     let mut actor = Actor::new(&batch);
     let (n, t) = (batch.len(), cfg.ppo.rollout_steps(batch.len()));
+    let wanted = vec![PolicySlot::General; n];
     let mut chunk = Vec::new();
     let mut env_steps = 0;
     while env_steps < cfg.run.total_steps {
         chunk.clear();
         for _ in 0..t {
-            actor.tick(
-                &mut batch,
-                &mut ctrl,
-                learner.policy_version(),
-                &[],
-                &mut chunk,
-            );
+            actor.tick(&mut batch, &mut pool, &wanted, &[], &mut chunk);
         }
         env_steps += (t * n) as u64;
         actor.bootstrap(&mut chunk);
@@ -46,9 +44,12 @@ fn train_in_process(cfg: &Config) -> Learner {
                 episodes: &[],
             })
             .expect("update");
-        ctrl.policy
+        let general = pool.get_mut(PolicySlot::General).expect("general policy");
+        general
+            .policy
             .set_weights(&learner.policy_weights())
             .expect("same layout");
+        pool.set_version(PolicySlot::General, learner.policy_version());
     }
     learner
 }

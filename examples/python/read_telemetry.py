@@ -15,11 +15,14 @@ class TickHeader(ctypes.Structure):
 
     _fields_ = [("tick", ctypes.c_uint64), ("env_steps", ctypes.c_uint64),
                 ("policy_version", ctypes.c_uint32), ("envs", ctypes.c_uint32),
-                ("episodes", ctypes.c_uint64), ("successes", ctypes.c_uint64)]
+                ("episodes", ctypes.c_uint64), ("successes", ctypes.c_uint64),
+                ("sent_ns", ctypes.c_uint64),  # CLOCK_MONOTONIC (time.monotonic_ns()) at send
+                # Sums over successful episodes of their length in ticks, and of its square.
+                ("reach_ticks", ctypes.c_uint64), ("reach_ticks_sq", ctypes.c_uint64)]
 
     @staticmethod
     def type_name() -> str:
-        return "lavatube.TickHeader.v1"
+        return "lavatube.TickHeader.v2"
 
 
 class EnvTick(ctypes.Structure):

@@ -2,19 +2,18 @@
 //! run directory, starts learner, estimator and simulator, shows progress from the run's own
 //! telemetry, stops everything on Ctrl-C or failure, and prints a summary.
 
-use super::UserError;
-use crate::supervise::{self, Proc};
+use super::{UserError, swap};
+use crate::supervise::{self, Event, Proc, Slot, Spec};
 use anyhow::Context;
 use common::Config;
+use common::config::PolicySlot;
 use common::ipc::{self, Bus};
-use common::wire::{EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
+use common::wire::{EnvTick, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
 use indicatif::{ProgressBar, ProgressStyle};
-use std::path::PathBuf;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
-
-/// How long a process gets to stop on request before SIGTERM, and again before SIGKILL.
-const GRACE: Duration = Duration::from_secs(5);
 
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
@@ -51,10 +50,46 @@ impl Progress {
         self.tick.successes as f64 / self.tick.episodes.max(1) as f64
     }
 
+    /// Mean and std of the reach time of successful episodes, seconds (SPEC S8, Table 1).
+    fn reach_seconds(&self, decision_dt: f64) -> Option<(f64, f64)> {
+        let n = self.tick.successes as f64;
+        (n > 0.0).then(|| {
+            let mean = self.tick.reach_ticks as f64 / n;
+            let var = (self.tick.reach_ticks_sq as f64 / n - mean * mean).max(0.0);
+            (mean * decision_dt, var.sqrt() * decision_dt)
+        })
+    }
+
     fn terrain_accuracy(&self) -> Option<f64> {
         (self.both_areas && self.terrain.scored > 0)
             .then(|| self.terrain.correct as f64 / self.terrain.scored as f64)
     }
+}
+
+/// The learner's arguments: `join` (serve, config, run id), its run directory, and a
+/// checkpoint to start from instead of the run's newest.
+pub fn learner_args(join: &[String], dir: &Path, checkpoint: Option<&Path>) -> Vec<String> {
+    let mut a = join.to_vec();
+    a.extend(["--out".into(), dir.display().to_string()]);
+    if let Some(c) = checkpoint {
+        a.extend(["--checkpoint".into(), c.display().to_string()]);
+    }
+    a
+}
+
+/// Where a slot's learner writes metrics and checkpoints: the run directory for `general`,
+/// a subdirectory per specialist.
+pub fn learner_dir(run_dir: &Path, slot: PolicySlot) -> PathBuf {
+    match slot {
+        PolicySlot::General => run_dir.to_path_buf(),
+        s => run_dir.join(s.learner_name()),
+    }
+}
+
+/// Stops every slot's process (see [`supervise::stop`]).
+fn stop_all(slots: &mut [Slot], request: &dyn Fn(), grace: Duration) {
+    let mut procs: Vec<&mut Proc> = slots.iter_mut().map(|s| &mut s.proc).collect();
+    supervise::stop(&mut procs, request, grace);
 }
 
 pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
@@ -62,13 +97,26 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
+    let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
+    Ok(if execute(&cfg, &run_id, args.quiet)? {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(130)
+    })
+}
+
+/// Runs `cfg` as run `run_id` in `<run.out-dir>/<run_id>/` to the end. Returns false when
+/// interrupted (Ctrl-C); fails when a process failed for good.
+pub fn execute(cfg: &Config, run_id: &str, quiet: bool) -> anyhow::Result<bool> {
     let bins = [
         supervise::locate("learner-proc")?,
         supervise::locate("estimator-proc")?,
         supervise::locate("sim-proc")?,
     ];
-    let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
-    let dir = cfg.run.out_dir.join(&run_id);
+    let run_id = run_id.to_string();
+    // Absolute, so logs and the children's arguments name it unambiguously.
+    let dir = std::path::absolute(cfg.run.out_dir.join(&run_id))
+        .with_context(|| format!("cannot resolve {}", cfg.run.out_dir.display()))?;
     if dir.exists() {
         return Err(UserError(format!(
             "run directory {} already exists: pick another --run-id",
@@ -82,7 +130,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     std::fs::write(&cfg_path, cfg.to_toml())
         .with_context(|| format!("cannot write {}", cfg_path.display()))?;
 
-    let bar = if args.quiet {
+    let bar = if quiet {
         ProgressBar::hidden()
     } else {
         ProgressBar::new(cfg.run.total_steps)
@@ -106,8 +154,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     let control = bus.control_notifier()?;
     let tele_rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let terrain_rx = bus.receiver::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None)?;
+    let swap_server = bus.swap_server()?;
 
-    let common_args = |extra: &[&str]| -> Vec<String> {
+    let join = |extra: &[&str]| -> Vec<String> {
         let mut v: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
         v.extend([
             "--config".into(),
@@ -117,21 +166,51 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         ]);
         v
     };
-    let specs: [(&'static str, Vec<String>); 3] = [
-        ("learner", {
-            let mut a = common_args(&["serve"]);
-            a.extend(["--out".into(), dir.display().to_string()]);
-            a
-        }),
-        ("estimator", common_args(&["serve"])),
-        ("sim", common_args(&[])),
-    ];
-    let mut procs: Vec<Proc> = Vec::new();
-    for ((name, a), bin) in specs.into_iter().zip(&bins) {
-        match Proc::spawn(name, bin, &a, &logs, &bar) {
-            Ok(p) => procs.push(p),
+    let [learner_bin, estimator_bin, sim_bin] = bins;
+    let sup = &cfg.supervise;
+    let learners = cfg.run.learners.iter().map(|&slot| {
+        let mut join = join(&["serve", "--slot", slot.name()]);
+        if let Some(init) = &cfg.run.init_from {
+            join.extend(["--init-from".into(), init.display().to_string()]);
+        }
+        Spec {
+            name: slot.learner_name(),
+            bin: learner_bin.clone(),
+            args: learner_args(&join, &learner_dir(&dir, slot), None),
+            policy: sup.learner,
+        }
+    });
+    let frozen = cfg.run.frozen.iter().map(|(&slot, ckpt)| Spec {
+        name: slot.learner_name(),
+        bin: learner_bin.clone(),
+        args: learner_args(
+            &join(&["serve", "--slot", slot.name(), "--frozen"]),
+            &learner_dir(&dir, slot),
+            Some(ckpt),
+        ),
+        policy: sup.learner,
+    });
+    let specs = learners.chain(frozen).chain([
+        Spec {
+            name: "estimator",
+            bin: estimator_bin,
+            args: join(&["serve"]),
+            policy: sup.estimator,
+        },
+        Spec {
+            name: "sim",
+            bin: sim_bin,
+            args: join(&[]),
+            policy: sup.sim,
+        },
+    ]);
+    let grace = Duration::from_millis(sup.grace_ms);
+    let mut slots: Vec<Slot> = Vec::new();
+    for spec in specs {
+        match Slot::start(spec, &logs, &bar) {
+            Ok(s) => slots.push(s),
             Err(e) => {
-                supervise::stop(&mut procs, &|| {}, GRACE);
+                stop_all(&mut slots, &|| {}, grace);
                 return Err(e);
             }
         }
@@ -140,9 +219,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         &bar,
         format!(
             "pids: {}",
-            procs
+            slots
                 .iter()
-                .map(|p| format!("{} {}", p.name, p.pid()))
+                .map(|s| format!("{} {}", s.spec.name, s.proc.pid()))
                 .collect::<Vec<_>>()
                 .join(", ")
         ),
@@ -155,6 +234,8 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     let mut interrupted = false;
     let mut failed: Option<String> = None;
+    let mut swaps = 0u32;
+    let mut sim_finished: Option<Instant> = None;
     loop {
         if let Some(s) = tele_rx.latest()? {
             progress.tick = *s.user_header();
@@ -171,19 +252,71 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
                 .terrain_accuracy()
                 .map_or("-".into(), |a| format!("{:.0}%", 100.0 * a))
         ));
-        for p in procs.iter_mut() {
-            if let Some(st) = p.poll()
-                && !st.success()
-                && failed.is_none()
-            {
-                failed = Some(format!("{} exited with {st}", p.name));
+        let may_restart = sim_finished.is_none();
+        for slot in slots.iter_mut() {
+            let name = slot.spec.name;
+            match slot.watch(&logs, &bar, may_restart)? {
+                Some(Event::Restarting { status, after }) => {
+                    let cleaned = bus.cleanup_dead_nodes();
+                    supervise::say(
+                        &bar,
+                        format!(
+                            "{name} exited with {status}; restart {} of {} in {:.1} s ({cleaned} dead node(s) cleaned up)",
+                            slot.restarts + 1,
+                            slot.spec.policy.max_restarts,
+                            after.as_secs_f64()
+                        ),
+                    );
+                }
+                Some(Event::Restarted { pid }) => {
+                    supervise::say(&bar, format!("{name} restarted: pid {pid}"));
+                }
+                Some(Event::Exited(status)) if name == "sim" && status.success() => {
+                    sim_finished = Some(Instant::now());
+                }
+                Some(Event::Exited(status)) if name == "estimator" && may_restart => {
+                    // DESIGN §5: without estimates the sim keeps acting on its last ones.
+                    bus.cleanup_dead_nodes();
+                    supervise::say(
+                        &bar,
+                        format!(
+                            "estimator exited with {status} for good; the sim keeps its last terrain estimates"
+                        ),
+                    );
+                }
+                Some(Event::Exited(status)) if !status.success() && failed.is_none() => {
+                    failed = Some(format!("{name} exited with {status}"));
+                }
+                _ => {}
             }
         }
-        let sim_done = procs.iter().any(|p| p.name == "sim" && p.status.is_some());
-        let learner_done = procs
+        if let Some(request) = swap_server.receive()? {
+            let req = *request.payload();
+            let name = PolicySlot::ALL[(req.slot as usize).min(2)].learner_name();
+            let (ok, message) = match slots.iter_mut().find(|s| s.spec.name == name) {
+                None => (false, format!("this run has no {name}")),
+                Some(slot) => {
+                    match swap::swap_learner(slot, &req, cfg, &dir, swaps + 1, &logs, &bar, grace) {
+                        Ok(m) => {
+                            swaps += 1;
+                            bus.cleanup_dead_nodes();
+                            (true, m)
+                        }
+                        Err(m) => (false, m),
+                    }
+                }
+            };
+            supervise::say(&bar, format!("swap-learner: {message}"));
+            if let Err(e) = request.send_copy(SwapReply::new(ok, &message)) {
+                supervise::say(&bar, format!("swap-learner: cannot reply: {e:?}"));
+            }
+        }
+        let learner_alive = slots
             .iter()
-            .any(|p| p.name == "learner" && p.status.is_some());
-        if failed.is_some() || (sim_done && learner_done) {
+            .any(|s| s.spec.name.starts_with("learner") && s.alive());
+        // Once the sim is done the learner gets one grace period to learn from the last chunk.
+        let learner_late = sim_finished.is_some_and(|t| t.elapsed() > grace);
+        if failed.is_some() || (sim_finished.is_some() && (!learner_alive || learner_late)) {
             break;
         }
         if bus.node().wait(Duration::from_millis(100)).is_err() {
@@ -192,17 +325,17 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
             break;
         }
     }
-    supervise::stop(
-        &mut procs,
+    stop_all(
+        &mut slots,
         &|| {
             if let Err(e) = ipc::request_shutdown(&control) {
                 eprintln!("lavatube: {e}");
             }
         },
-        GRACE,
+        grace,
     );
     bar.finish_and_clear();
-    drop((tele_rx, terrain_rx, control, bus));
+    drop((tele_rx, terrain_rx, control, swap_server, bus));
     if let Err(e) = ipc::remove_run(&run_id) {
         eprintln!("lavatube: {e}");
     }
@@ -214,11 +347,15 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         "wall_seconds": secs,
         "env_steps_per_second": progress.tick.env_steps as f64 / secs.max(1e-9),
         "episodes": progress.tick.episodes,
+        "successes": progress.tick.successes,
         "success_rate": progress.success_rate(),
+        "reach_seconds": progress.reach_seconds(cfg.sim.decision_dt()).map(|(m, s)| serde_json::json!({"mean": m, "std": s})),
         "policy_version": progress.tick.policy_version,
         "terrain_accuracy": progress.terrain_accuracy(),
-        "pids": procs.iter().map(|p| (p.name, p.pid())).collect::<std::collections::BTreeMap<_, _>>(),
-        "exit": procs.iter().map(|p| (p.name, p.status.map(|s| s.to_string()))).collect::<std::collections::BTreeMap<_, _>>(),
+        "pids": slots.iter().map(|s| (s.spec.name, s.proc.pid())).collect::<BTreeMap<_, _>>(),
+        "exit": slots.iter().map(|s| (s.spec.name, s.proc.status.map(|s| s.to_string()))).collect::<BTreeMap<_, _>>(),
+        "restarts": slots.iter().map(|s| (s.spec.name, s.restarts)).collect::<BTreeMap<_, _>>(),
+        "learner_swaps": swaps,
     });
     let summary_path = dir.join("summary.json");
     std::fs::write(&summary_path, serde_json::to_string_pretty(&summary)?)
@@ -239,9 +376,27 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     if let Some(f) = failed {
         anyhow::bail!("{f}; logs in {}", logs.display());
     }
-    Ok(if interrupted {
-        ExitCode::from(130)
-    } else {
-        ExitCode::SUCCESS
-    })
+    Ok(!interrupted)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reach_time_comes_from_the_tick_sums() {
+        // Two successes of 10 and 20 ticks at 0.1 s per tick: 1.5 s ± 0.5 s.
+        let p = Progress {
+            tick: TickHeader {
+                successes: 2,
+                reach_ticks: 30,
+                reach_ticks_sq: 500,
+                ..TickHeader::default()
+            },
+            ..Progress::default()
+        };
+        let (mean, std) = p.reach_seconds(0.1).expect("successes");
+        assert!((mean - 1.5).abs() < 1e-12 && (std - 0.5).abs() < 1e-12);
+        assert_eq!(Progress::default().reach_seconds(0.1), None);
+    }
 }

@@ -1,8 +1,8 @@
 //! Shared by the end-to-end tests: running the launcher as a real process, with a watchdog
 //! instead of a timing assertion.
 
-use std::path::Path;
-use std::process::{Command, Stdio};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
 /// Kills the launcher if it has not finished in time.
@@ -13,31 +13,66 @@ pub fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
-/// `lavatube run --config CONFIG --run-id RUN_ID --quiet` from the repository root, to the
-/// end. Returns the exit code and everything it printed (captured in a file, so a chatty
-/// run cannot block on a full pipe).
+/// A launcher started by a test, its output captured in a file (so a chatty run cannot
+/// block on a full pipe).
+pub struct Launched {
+    pub child: Child,
+    log_path: PathBuf,
+}
+
+impl Launched {
+    /// `lavatube run --config CONFIG --run-id RUN_ID --quiet` from the repository root.
+    pub fn start(config: &str, run_id: &str) -> Self {
+        let log_path = std::env::temp_dir().join(format!("lavatube-test-{run_id}.log"));
+        let log = std::fs::File::create(&log_path).expect("log file");
+        let child = Command::new(env!("CARGO_BIN_EXE_lavatube"))
+            .args(["run", "--config", config, "--run-id", run_id, "--quiet"])
+            .current_dir(root())
+            .stdout(Stdio::from(log.try_clone().expect("log file")))
+            .stderr(Stdio::from(log))
+            .spawn()
+            .expect("launcher starts");
+        Self { child, log_path }
+    }
+
+    /// Waits for the launcher to exit; returns its exit code and everything it printed.
+    pub fn wait(mut self) -> (i32, String) {
+        let status = self.wait_status();
+        let text = std::fs::read_to_string(&self.log_path).unwrap_or_default();
+        let _ = std::fs::remove_file(&self.log_path);
+        (status.code().unwrap_or(-1), text)
+    }
+
+    fn wait_status(&mut self) -> std::process::ExitStatus {
+        let started = Instant::now();
+        loop {
+            if let Some(status) = self.child.try_wait().expect("poll") {
+                break status;
+            }
+            if started.elapsed() > WATCHDOG {
+                self.child.kill().expect("kill");
+                panic!("lavatube run did not finish within {WATCHDOG:?}");
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+}
+
+/// A test that fails midway still stops its run: SIGINT, as Ctrl-C would, then the wait.
+impl Drop for Launched {
+    fn drop(&mut self) {
+        if matches!(self.child.try_wait(), Ok(None)) {
+            // SAFETY: kill(2) on our own child, not yet reaped.
+            unsafe {
+                libc::kill(self.child.id() as i32, libc::SIGINT);
+            }
+            self.wait_status();
+        }
+    }
+}
+
+/// `lavatube run --config CONFIG --run-id RUN_ID --quiet`, to the end.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
 pub fn lavatube_run(config: &str, run_id: &str) -> (i32, String) {
-    let log_path = std::env::temp_dir().join(format!("lavatube-test-{run_id}.log"));
-    let log = std::fs::File::create(&log_path).expect("log file");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .args(["run", "--config", config, "--run-id", run_id, "--quiet"])
-        .current_dir(root())
-        .stdout(Stdio::from(log.try_clone().expect("log file")))
-        .stderr(Stdio::from(log))
-        .spawn()
-        .expect("launcher starts");
-    let started = Instant::now();
-    let status = loop {
-        if let Some(status) = child.try_wait().expect("poll") {
-            break status;
-        }
-        if started.elapsed() > WATCHDOG {
-            child.kill().expect("kill");
-            panic!("lavatube run did not finish within {WATCHDOG:?}");
-        }
-        std::thread::sleep(Duration::from_millis(100));
-    };
-    let text = std::fs::read_to_string(&log_path).unwrap_or_default();
-    let _ = std::fs::remove_file(&log_path);
-    (status.code().unwrap_or(-1), text)
+    Launched::start(config, run_id).wait()
 }
