@@ -1,10 +1,13 @@
 //! The subcommands, one file each.
 
 mod analyze;
+mod bench;
 mod check_config;
 mod clean;
+mod reproduce;
 mod run;
 mod status;
+mod swap;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -41,6 +44,10 @@ pub struct Cli {
 pub enum Command {
     /// Train: start the simulator, learner and estimator of a new run and supervise them.
     Run(run::RunArgs),
+    /// The paper's experiment end to end, stage by stage (resumable): models, Table 3, Table 1.
+    Reproduce(reproduce::ReproduceArgs),
+    /// Replace a running run's learner (new hyperparameters or checkpoint); the sim keeps going.
+    SwapLearner(swap::SwapArgs),
     /// The paper's terrain analysis (SPEC S7) on recorded telemetry: Table 3 and Figs. 5–8.
     Analyze(analyze::AnalyzeArgs),
     /// Parse and validate a config file, start nothing.
@@ -50,6 +57,15 @@ pub enum Command {
     },
     /// List runs with shared-memory resources and their processes.
     Status,
+    /// Measure throughput stage by stage (physics, policy, iceoryx2, learner sync and async,
+    /// estimator) for several env and thread counts, and iceoryx2 against a Unix socket.
+    Bench(bench::BenchArgs),
+    /// The reading process of a bench stage (started by `lavatube bench`).
+    #[command(hide = true)]
+    BenchReader(bench::ReaderArgs),
+    /// The receiving process of the bench's transport comparison (started by `lavatube bench`).
+    #[command(hide = true)]
+    BenchEcho(bench::EchoArgs),
     /// Remove the shared-memory resources of runs whose processes are all gone.
     Clean {
         /// Only this run.
@@ -61,8 +77,13 @@ pub enum Command {
 pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Run(args) => run::run(args),
+        Command::Reproduce(args) => reproduce::reproduce(args),
+        Command::SwapLearner(args) => swap::swap_learner_command(args),
         Command::Analyze(args) => analyze::analyze(args),
         Command::CheckConfig { config } => check_config::check_config(&config),
+        Command::Bench(args) => bench::bench(args),
+        Command::BenchReader(args) => bench::reader(args),
+        Command::BenchEcho(args) => bench::echo(args),
         Command::Status => status::status(),
         Command::Clean { run_id } => clean::clean(run_id.as_deref()),
     }
