@@ -1,0 +1,215 @@
+//! `lavatube bench`: where time goes, stage by stage, in one invocation (issue 8). For each
+//! env count and sim thread count it runs, on the same rough-ground envs and seed:
+//! a. physics alone, b. + policy inference, c. + publishing through iceoryx2 to a reader
+//! process, d. + the learner in sync mode, e. + the learner in async mode, f. + the estimator;
+//! then the same bytes over iceoryx2 and over a Unix socket between two processes. It prints
+//! the tables and writes `bench.json`.
+//!
+//! Every stage runs the real binaries with the arguments `lavatube run` gives them, so the
+//! numbers are the runtime's own. The launcher only starts, watches and stops them.
+
+mod child;
+mod config;
+mod reader;
+mod report;
+mod stages;
+mod transport;
+
+pub use reader::{ReaderArgs, reader};
+pub use transport::{EchoArgs, echo};
+
+use super::UserError;
+use anyhow::Context;
+use common::ipc::{self, Bus};
+use config::Plan;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use transport::{Kind, Payload};
+
+#[derive(Debug, clap::Args)]
+pub struct BenchArgs {
+    /// Bench file (TOML): a `[bench]` table naming the env counts, thread counts, budgets and
+    /// the runtime config. Default: the built-in defaults (`configs/bench.toml` spells them
+    /// out, with `configs/default.toml` as the runtime).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// Also write the results (JSON) here; they always go to `<out-dir>/<bench-id>/bench.json`.
+    #[arg(long)]
+    pub json: Option<PathBuf>,
+    /// A few hundred env steps per measurement and a small rollout: checks the tool and its
+    /// output in seconds; the numbers are not for quoting.
+    #[arg(long)]
+    pub quick: bool,
+}
+
+/// Ctrl-C or SIGTERM during a bench: stop, clean up, exit 130.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted")]
+pub struct Interrupted;
+
+pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
+    let plan = Plan::load(args.config.as_deref(), args.quick)?;
+    if let Some(parent) = args.json.as_deref().and_then(Path::parent)
+        && !parent.as_os_str().is_empty()
+        && !parent.is_dir()
+    {
+        return Err(UserError(format!(
+            "--json: directory {} does not exist",
+            parent.display()
+        ))
+        .into());
+    }
+    let bins = stages::Bins::locate()?;
+    let secs = SystemTime::now()
+        .duration_since(UNIX_EPOCH)
+        .map_or(0, |d| d.as_secs());
+    let bench_id = format!("b{secs:x}-{:x}", std::process::id());
+    let dir = std::path::absolute(plan.bench.out_dir.join(&bench_id))
+        .with_context(|| format!("cannot resolve {}", plan.bench.out_dir.display()))?;
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut machine = report::Machine::now();
+    let policy = stages::RandomPolicy::write(&plan.runtime, &dir)?;
+
+    let measurements = plan.measurements();
+    let payloads = payloads(&plan, policy.weights.len());
+    let bar = ProgressBar::new((measurements.len() + payloads.len()) as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar.enable_steady_tick(Duration::from_millis(200));
+    crate::supervise::say(
+        &bar,
+        format!(
+            "bench {bench_id}: {} measurements and {} payloads → {}",
+            measurements.len(),
+            payloads.len(),
+            dir.display()
+        ),
+    );
+
+    // The bench's own node: the transport comparison's run, and from its creation on, Ctrl-C
+    // is a request the bench sees (see `Ctx::check_interrupt`) rather than its death.
+    let home = Bus::connect(&bench_id, "bench")?;
+    let ctx = stages::Ctx {
+        plan: &plan,
+        bins: &bins,
+        dir: &dir,
+        bench_id: &bench_id,
+        home: &home,
+        policy: &policy,
+    };
+    let mut rows = Vec::new();
+    let outcome = (|| -> anyhow::Result<Vec<transport::TransportRow>> {
+        for m in &measurements {
+            bar.set_message(format!(
+                "{} {} · {} envs · {} thread(s)",
+                m.stage.letter(),
+                m.stage.name(),
+                m.envs,
+                m.threads
+            ));
+            let row = stages::measure(&ctx, m)
+                .with_context(|| format!("stage {} ({})", m.stage.letter(), m.label()))?;
+            crate::supervise::say(
+                &bar,
+                format!(
+                    "{:<26} {:>9.0} decision steps/s{}",
+                    format!(
+                        "{} {} N={} t={}",
+                        row.stage, row.stage_name, row.envs, row.threads
+                    ),
+                    row.decision_steps_per_s,
+                    row.transport_latency_p50_us
+                        .map_or(String::new(), |l| format!(", tick latency p50 {l:.1} µs")),
+                ),
+            );
+            rows.push(row);
+            bar.inc(1);
+        }
+        bar.set_message("the same bytes over iceoryx2 and a Unix socket");
+        transport::compare(
+            &home,
+            &bins.launcher,
+            &dir,
+            &payloads,
+            plan.bench.transport_messages,
+            &policy.weights,
+            &mut |p| {
+                bar.inc(1);
+                bar.set_message(format!("transport: {} done", p.label()));
+            },
+        )
+        .context("transport comparison")
+    })();
+    bar.finish_and_clear();
+    drop(home);
+    if let Err(e) = ipc::remove_run(&bench_id) {
+        eprintln!("lavatube: {e}");
+    }
+    let transport = match outcome {
+        Ok(t) => t,
+        Err(e) if e.is::<Interrupted>() => {
+            eprintln!(
+                "lavatube: bench interrupted; partial logs in {}",
+                dir.display()
+            );
+            return Ok(ExitCode::from(130));
+        }
+        Err(e) => return Err(e.context(format!("logs in {}", dir.display()))),
+    };
+
+    machine.load_1m_end = report::load_1m();
+    let report = report::Report::new(
+        &plan,
+        bench_id,
+        machine,
+        policy.weights.len(),
+        rows,
+        transport,
+    );
+    print!("{}", report.text());
+    let json = serde_json::to_string_pretty(&report)?;
+    let path = dir.join("bench.json");
+    std::fs::write(&path, &json).with_context(|| format!("cannot write {}", path.display()))?;
+    if let Some(out) = &args.json {
+        std::fs::write(out, &json).with_context(|| format!("cannot write {}", out.display()))?;
+    }
+    println!(
+        "results: {}{}",
+        path.display(),
+        args.json
+            .as_ref()
+            .map_or(String::new(), |o| format!(" and {}", o.display()))
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The transport comparison's payloads: a telemetry tick and a rollout chunk per env count,
+/// and the policy's weights.
+fn payloads(plan: &Plan, policy_len: usize) -> Vec<Payload> {
+    let mut out = Vec::new();
+    for &n in &plan.bench.envs {
+        out.push(Payload {
+            kind: Kind::Telemetry,
+            envs: Some(n),
+            elements: n,
+        });
+    }
+    for &n in &plan.bench.envs {
+        let t = plan.rollout_steps(n) as usize;
+        out.push(Payload {
+            kind: Kind::Rollout,
+            envs: Some(n),
+            elements: t * n + n,
+        });
+    }
+    out.push(Payload {
+        kind: Kind::Weights,
+        envs: None,
+        elements: policy_len,
+    });
+    out
+}

@@ -1,0 +1,454 @@
+//! The results: the stage table (throughput), the process table (CPU time and peak memory),
+//! the transport table (iceoryx2 versus the socket), the acceptance checks of issue 8, and
+//! the same as JSON with the units in the key names and spelled out in `units`.
+
+use super::config::{Plan, Stage};
+use super::stages::Row;
+use super::transport::TransportRow;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt::Write as _;
+use std::path::PathBuf;
+
+/// Issue 8: publishing through iceoryx2 costs less than 5 % of the decision rate.
+pub const PUBLISH_OVER_POLICY_TARGET: f64 = 0.95;
+/// Issue 8: env steps per second while learning (stages d and e), on a 2-core machine.
+pub const LEARNING_TARGET: f64 = 4200.0;
+
+/// Where the numbers were taken: they mean little without the machine and its load.
+#[derive(Debug, Clone, Serialize)]
+pub struct Machine {
+    pub cpus: usize,
+    pub cpu_model: Option<String>,
+    /// `/proc/loadavg`'s one-minute load when the bench started and ended.
+    pub load_1m_start: Option<f64>,
+    pub load_1m_end: Option<f64>,
+}
+
+impl Machine {
+    pub fn now() -> Self {
+        let cpu_model = std::fs::read_to_string("/proc/cpuinfo").ok().and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split_once(':'))
+                .map(|(_, v)| v.trim().to_string())
+        });
+        Self {
+            cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            cpu_model,
+            load_1m_start: load_1m(),
+            load_1m_end: None,
+        }
+    }
+}
+
+pub fn load_1m() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// What was measured with what.
+#[derive(Debug, Clone, Serialize)]
+pub struct Settings {
+    pub runtime_config: Option<PathBuf>,
+    pub envs: Vec<usize>,
+    pub threads: Vec<usize>,
+    pub env_steps_per_measurement: u64,
+    pub min_chunks: u64,
+    pub seed: u64,
+    pub ground: &'static str,
+    pub substeps: usize,
+    pub physics_dt_s: f64,
+    pub rollout_transitions: usize,
+    pub ppo_epochs: usize,
+    pub minibatch_size: usize,
+    pub policy_hidden: Vec<usize>,
+    pub policy_params: usize,
+    pub transport_messages: usize,
+}
+
+impl Settings {
+    pub fn of(plan: &Plan, policy_params: usize) -> Self {
+        let (b, r) = (&plan.bench, &plan.runtime);
+        Self {
+            runtime_config: b.runtime.clone(),
+            envs: b.envs.clone(),
+            threads: b.threads.clone(),
+            env_steps_per_measurement: b.env_steps,
+            min_chunks: b.min_chunks,
+            seed: r.run.seed,
+            ground: "rough",
+            substeps: r.sim.substeps,
+            physics_dt_s: r.sim.physics_dt,
+            rollout_transitions: r.ppo.rollout_transitions,
+            ppo_epochs: r.ppo.epochs,
+            minibatch_size: r.ppo.minibatch_size,
+            policy_hidden: r.ppo.hidden.clone(),
+            policy_params,
+            transport_messages: b.transport_messages,
+        }
+    }
+}
+
+/// Stage c against stage b in one cell.
+#[derive(Debug, Clone, Serialize)]
+pub struct RatioCheck {
+    pub envs: usize,
+    pub threads: usize,
+    pub stage_b_decision_steps_per_s: f64,
+    pub stage_c_decision_steps_per_s: f64,
+    pub ratio: f64,
+    pub pass: bool,
+}
+
+/// A learning stage against the target in one cell.
+#[derive(Debug, Clone, Serialize)]
+pub struct RateCheck {
+    pub stage: char,
+    pub envs: usize,
+    pub threads: usize,
+    pub decision_steps_per_s: f64,
+    pub pass: bool,
+    /// For a miss: what the same cell reached without the learner (stage c), which tells
+    /// whether the sim or the learner holds it back.
+    pub without_learner_decision_steps_per_s: Option<f64>,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct Acceptance {
+    pub publish_over_policy_target: f64,
+    pub publish_over_policy: Vec<RatioCheck>,
+    pub learning_decision_steps_per_s_target: f64,
+    pub learning: Vec<RateCheck>,
+}
+
+impl Acceptance {
+    fn of(stages: &[Row]) -> Self {
+        let find = |stage: Stage, envs, threads| {
+            stages
+                .iter()
+                .find(|r| r.stage == stage.letter() && r.envs == envs && r.threads == threads)
+        };
+        let mut publish_over_policy = Vec::new();
+        let mut learning = Vec::new();
+        for r in stages {
+            if r.stage == Stage::Publish.letter()
+                && let Some(b) = find(Stage::Policy, r.envs, r.threads)
+            {
+                let ratio = r.decision_steps_per_s / b.decision_steps_per_s;
+                publish_over_policy.push(RatioCheck {
+                    envs: r.envs,
+                    threads: r.threads,
+                    stage_b_decision_steps_per_s: b.decision_steps_per_s,
+                    stage_c_decision_steps_per_s: r.decision_steps_per_s,
+                    ratio,
+                    pass: ratio >= PUBLISH_OVER_POLICY_TARGET,
+                });
+            }
+            if r.stage == Stage::Sync.letter() || r.stage == Stage::Async.letter() {
+                let pass = r.decision_steps_per_s >= LEARNING_TARGET;
+                learning.push(RateCheck {
+                    stage: r.stage,
+                    envs: r.envs,
+                    threads: r.threads,
+                    decision_steps_per_s: r.decision_steps_per_s,
+                    pass,
+                    without_learner_decision_steps_per_s: (!pass)
+                        .then(|| find(Stage::Publish, r.envs, r.threads))
+                        .flatten()
+                        .map(|c| c.decision_steps_per_s),
+                });
+            }
+        }
+        Self {
+            publish_over_policy_target: PUBLISH_OVER_POLICY_TARGET,
+            publish_over_policy,
+            learning_decision_steps_per_s_target: LEARNING_TARGET,
+            learning,
+        }
+    }
+}
+
+/// Everything `bench.json` holds.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    pub schema: &'static str,
+    pub bench_id: String,
+    /// `--quick`: the numbers check the tool; do not quote them.
+    pub quick: bool,
+    pub unix_time_s: u64,
+    pub machine: Machine,
+    pub settings: Settings,
+    pub units: BTreeMap<&'static str, &'static str>,
+    /// One entry per stage × envs × threads, in the order measured.
+    pub stages: Vec<Row>,
+    /// One entry per payload.
+    pub transport: Vec<TransportRow>,
+    pub acceptance: Acceptance,
+}
+
+fn units() -> BTreeMap<&'static str, &'static str> {
+    BTreeMap::from([
+        (
+            "decision_steps",
+            "one policy action applied to one env; summed over envs",
+        ),
+        (
+            "physics_steps",
+            "rapier steps: decision steps × sim.substeps, summed over envs",
+        ),
+        ("env_steps", "decision steps summed over envs"),
+        ("ticks", "decision steps of every env at once"),
+        ("*_per_s", "per second of wall time"),
+        (
+            "learner_samples_per_s",
+            "PPO minibatch samples × epochs per second of update time",
+        ),
+        (
+            "policy_lag_versions",
+            "policy versions the acting policy was behind the learner's",
+        ),
+        ("*_us", "microseconds"),
+        ("*_s", "seconds"),
+        ("peak_rss_mib", "peak resident set size, MiB (2^20 bytes)"),
+        ("bytes", "bytes of payload per message"),
+        (
+            "ratios",
+            "dimensionless; above 1 means iceoryx2 did better than the socket",
+        ),
+        ("load_1m", "one-minute load average (runnable processes)"),
+    ])
+}
+
+impl Report {
+    pub fn new(
+        plan: &Plan,
+        bench_id: String,
+        machine: Machine,
+        policy_params: usize,
+        stages: Vec<Row>,
+        transport: Vec<TransportRow>,
+    ) -> Self {
+        Self {
+            schema: "lavatube.bench.v1",
+            bench_id,
+            quick: plan.quick,
+            unix_time_s: std::time::SystemTime::now()
+                .duration_since(std::time::UNIX_EPOCH)
+                .map_or(0, |d| d.as_secs()),
+            machine,
+            settings: Settings::of(plan, policy_params),
+            units: units(),
+            acceptance: Acceptance::of(&stages),
+            stages,
+            transport,
+        }
+    }
+
+    /// The tables and the acceptance checks, as printed.
+    pub fn text(&self) -> String {
+        let mut t = String::new();
+        let m = &self.machine;
+        let load = |l: Option<f64>| l.map_or("?".into(), |l| format!("{l:.2}"));
+        let _ = writeln!(
+            t,
+            "lavatube bench {}{}: {} CPUs ({}), load {} → {}; rough ground, {} physics steps per decision, policy {:?} ({} params)",
+            self.bench_id,
+            if self.quick {
+                " (--quick: not for quoting)"
+            } else {
+                ""
+            },
+            m.cpus,
+            m.cpu_model.as_deref().unwrap_or("unknown CPU"),
+            load(m.load_1m_start),
+            load(m.load_1m_end),
+            self.settings.substeps,
+            self.settings.policy_hidden,
+            self.settings.policy_params,
+        );
+        let _ = writeln!(
+            t,
+            "\n{:<18} {:>4} {:>3} {:>11} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
+            "stage",
+            "N",
+            "thr",
+            "decision/s",
+            "physics/s",
+            "learn smp/s",
+            "lag",
+            "p50 µs",
+            "p99 µs",
+            "missed"
+        );
+        for r in &self.stages {
+            let missed = match (r.telemetry_ticks_missed, r.rollout_chunks_missed) {
+                (Some(a), Some(b)) => format!("{a}/{b}"),
+                _ => "-".into(),
+            };
+            let _ = writeln!(
+                t,
+                "{:<18} {:>4} {:>3} {:>11} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
+                format!("{} {}", r.stage, r.stage_name),
+                r.envs,
+                r.threads,
+                thousands(r.decision_steps_per_s),
+                thousands(r.physics_steps_per_s),
+                r.learner_samples_per_s.map_or("-".into(), thousands),
+                r.policy_lag_versions
+                    .map_or("-".into(), |l| format!("{l:.2}")),
+                r.transport_latency_p50_us
+                    .map_or("-".into(), |l| format!("{l:.1}")),
+                r.transport_latency_p99_us
+                    .map_or("-".into(), |l| format!("{l:.1}")),
+                missed,
+            );
+        }
+        let _ = writeln!(
+            t,
+            "(missed: telemetry ticks / rollout chunks the reader did not get)"
+        );
+        let procs = ["sim", "reader", "learner", "estimator"];
+        let _ = write!(t, "\n{:<18} {:>4} {:>3}", "CPU s / peak MiB", "N", "thr");
+        for p in procs {
+            let _ = write!(t, " {p:>16}");
+        }
+        let _ = writeln!(t);
+        for r in &self.stages {
+            let _ = write!(
+                t,
+                "{:<18} {:>4} {:>3}",
+                format!("{} {}", r.stage, r.stage_name),
+                r.envs,
+                r.threads
+            );
+            for p in procs {
+                let cell = r.processes.get(p).map_or("-".into(), |u| {
+                    format!("{:.2} / {:.0}", u.cpu_s(), u.peak_rss_mib)
+                });
+                let _ = write!(t, " {cell:>16}");
+            }
+            let _ = writeln!(t);
+        }
+        if !self.transport.is_empty() {
+            let _ = writeln!(
+                t,
+                "\n{:<18} {:>8} {:>17} {:>10} {:>17} {:>10} {:>6} {:>6} {:>6}",
+                "same bytes over",
+                "bytes",
+                "iceoryx2 p50/p99",
+                "msg/s",
+                "socket p50/p99",
+                "msg/s",
+                "p50 ×",
+                "p99 ×",
+                "msg ×"
+            );
+            for x in &self.transport {
+                let label = match x.envs {
+                    Some(n) => format!("{} N={n}", x.payload.name()),
+                    None => x.payload.name().to_string(),
+                };
+                let _ = writeln!(
+                    t,
+                    "{:<18} {:>8} {:>17} {:>10} {:>17} {:>10} {:>6.2} {:>6.2} {:>6.2}",
+                    label,
+                    x.bytes,
+                    format!(
+                        "{:.1} / {:.1} µs",
+                        x.iceoryx2.latency_p50_us, x.iceoryx2.latency_p99_us
+                    ),
+                    thousands(x.iceoryx2.messages_per_s),
+                    format!(
+                        "{:.1} / {:.1} µs",
+                        x.uds.latency_p50_us, x.uds.latency_p99_us
+                    ),
+                    thousands(x.uds.messages_per_s),
+                    x.ratios.latency_p50_uds_over_iceoryx2,
+                    x.ratios.latency_p99_uds_over_iceoryx2,
+                    x.ratios.messages_per_s_iceoryx2_over_uds,
+                );
+            }
+            let _ = writeln!(
+                t,
+                "(×: socket latency / iceoryx2 latency, iceoryx2 msg/s / socket msg/s; above 1 favours shared memory)"
+            );
+        }
+        let a = &self.acceptance;
+        let _ = writeln!(t);
+        if let Some(worst) = a
+            .publish_over_policy
+            .iter()
+            .min_by(|x, y| x.ratio.total_cmp(&y.ratio))
+        {
+            let passed = a.publish_over_policy.iter().filter(|c| c.pass).count();
+            let _ = writeln!(
+                t,
+                "stage c ≥ {:.2} × stage b: {passed} of {} cells pass; lowest {:.3} at N={}, {} thread(s)",
+                a.publish_over_policy_target,
+                a.publish_over_policy.len(),
+                worst.ratio,
+                worst.envs,
+                worst.threads,
+            );
+        }
+        for stage in [Stage::Sync, Stage::Async] {
+            let cells: Vec<&RateCheck> = a
+                .learning
+                .iter()
+                .filter(|c| c.stage == stage.letter())
+                .collect();
+            if let Some(best) = cells
+                .iter()
+                .max_by(|x, y| x.decision_steps_per_s.total_cmp(&y.decision_steps_per_s))
+            {
+                let passed = cells.iter().filter(|c| c.pass).count();
+                let _ = writeln!(
+                    t,
+                    "stage {} ≥ {} env steps/s: {passed} of {} cells pass; best {} at N={}, {} thread(s)",
+                    stage.letter(),
+                    thousands(a.learning_decision_steps_per_s_target),
+                    cells.len(),
+                    thousands(best.decision_steps_per_s),
+                    best.envs,
+                    best.threads,
+                );
+            }
+        }
+        t
+    }
+}
+
+/// `12345.6` → `12,346`.
+fn thousands(x: f64) -> String {
+    if !x.is_finite() {
+        return format!("{x}");
+    }
+    let digits = format!("{:.0}", x.abs());
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    if x < -0.5 { format!("-{out}") } else { out }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn thousands_groups_digits() {
+        assert_eq!(thousands(0.4), "0");
+        assert_eq!(thousands(999.0), "999");
+        assert_eq!(thousands(4200.0), "4,200");
+        assert_eq!(thousands(1_234_567.8), "1,234,568");
+        assert_eq!(thousands(-12_000.0), "-12,000");
+    }
+}
