@@ -178,8 +178,8 @@ impl Env {
 
     /// Runs the physics substeps. Returns false when the state went non-finite: rapier then
     /// quarantines the bodies. A panic inside rapier on a degenerate state is caught as well
-    /// (its multibody solver did panic so); either way only this env's world is lost, and the
-    /// caller respawns it.
+    /// (the multibody wheels the robot first had did panic so); either way only this env's
+    /// world is lost, and the caller respawns it.
     fn physics_substeps(&mut self) -> bool {
         let world = &mut self.world;
         let substeps = self.cfg.substeps;
