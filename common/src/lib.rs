@@ -5,6 +5,7 @@
 //! Depends on neither rapier nor burn, so every process can link it cheaply.
 
 pub mod cli;
+pub mod clock;
 pub mod config;
 pub mod ipc;
 pub mod logging;

@@ -111,22 +111,9 @@ pub struct TickHeader {
     pub reach_ticks_sq: u64,
 }
 
-/// Nanoseconds of `CLOCK_MONOTONIC`: one clock for every process on a host (unlike
-/// `std::time::Instant`, whose value cannot cross a process boundary), for send timestamps.
-pub fn monotonic_ns() -> u64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: clock_gettime(2) writes one timespec through a valid pointer; CLOCK_MONOTONIC
-    // always exists on Linux, so it cannot fail.
-    unsafe {
-        libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts);
-    }
-    (ts.tv_sec as u64)
-        .saturating_mul(1_000_000_000)
-        .saturating_add(ts.tv_nsec as u64)
-}
+/// The send-timestamp clock of [`TickHeader::sent_ns`]: `CLOCK_MONOTONIC`, the one clock
+/// every process on a host shares.
+pub use crate::clock::monotonic_ns;
 
 /// Episode event bits of [`EnvTick::events`].
 pub const EVENT_TERMINATED: u8 = 1;

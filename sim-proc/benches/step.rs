@@ -16,18 +16,6 @@ use sim_proc::{Batch, SharedTerrain, StepInfo};
 use std::io::Write;
 use std::time::{Duration, Instant};
 
-/// CPU time of the whole process (`CLOCK_PROCESS_CPUTIME_ID`): every thread's.
-fn process_cpu_time() -> Duration {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid, writable timespec; the clock id is a constant Linux supports.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
-    assert_eq!(rc, 0, "clock_gettime(CLOCK_PROCESS_CPUTIME_ID)");
-    Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
-}
-
 /// Everything criterion timed for one configuration, warm-up included.
 struct Row {
     envs: usize,
@@ -69,7 +57,7 @@ fn decision_steps(c: &mut Criterion) {
             group.throughput(Throughput::Elements(envs as u64));
             group.bench_function(BenchmarkId::new(format!("{threads}_threads"), envs), |b| {
                 b.iter_custom(|iters| {
-                    let (wall, cpu) = (Instant::now(), process_cpu_time());
+                    let (wall, cpu) = (Instant::now(), common::clock::process_cpu());
                     for _ in 0..iters {
                         for (i, a) in actions.iter_mut().enumerate() {
                             *a = ctrl.act(i, &obs[i]);
@@ -79,7 +67,7 @@ fn decision_steps(c: &mut Criterion) {
                     let elapsed = wall.elapsed();
                     row.steps += iters * envs as u64;
                     row.wall += elapsed;
-                    row.cpu += process_cpu_time().saturating_sub(cpu);
+                    row.cpu += common::clock::process_cpu().saturating_sub(cpu);
                     elapsed
                 })
             });
