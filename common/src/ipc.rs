@@ -13,8 +13,9 @@ use iceoryx2::port::subscriber::Subscriber;
 use iceoryx2::port::update_connections::UpdateConnections;
 use iceoryx2::prelude::*;
 use iceoryx2::sample::Sample;
+use std::cell::Cell;
 use std::fmt::Debug;
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 pub type Svc = ipc::Service;
 
@@ -240,6 +241,7 @@ impl Bus {
             publisher,
             notifier,
             name: name.to_string(),
+            wake: Wake::default(),
         })
     }
 
@@ -298,6 +300,32 @@ pub struct Sender<
     publisher: Publisher<Svc, [T], H>,
     notifier: Notifier<Svc>,
     name: String,
+    wake: Wake,
+}
+
+/// When a sender wakes its readers: on every send, or at most once per `interval` with the
+/// sends in between left `pending` until the next wake-up or [`Sender::flush`].
+#[derive(Debug, Default)]
+struct Wake {
+    interval: Duration,
+    last: Cell<Option<Instant>>,
+    pending: Cell<bool>,
+}
+
+impl Wake {
+    /// Whether a send at `now` wakes the readers; records it either way.
+    fn due(&self, now: Instant) -> bool {
+        let due = self.interval.is_zero()
+            || self
+                .last
+                .get()
+                .is_none_or(|last| now.duration_since(last) >= self.interval);
+        if due {
+            self.last.set(Some(now));
+        }
+        self.pending.set(!due);
+        due
+    }
 }
 
 impl<T, H> Sender<T, H>
@@ -315,7 +343,32 @@ where
             .map_err(|e| ipc_err(format!("update connections of `{}`", self.name))(&e))
     }
 
-    /// Copies `data` into a loaned shared-memory sample, sends it and wakes the readers.
+    /// Wakes the readers at most once per `interval` instead of on every send (0: every
+    /// send). Samples are delivered as always; a reader that sleeps sees them at the next
+    /// wake-up, so a sender that goes quiet must [`flush`](Self::flush) first.
+    pub fn with_wake_interval(mut self, interval: Duration) -> Self {
+        self.wake.interval = interval;
+        self
+    }
+
+    /// Wakes the readers if a send since the last wake-up did not.
+    pub fn flush(&self) -> Result<(), IpcError> {
+        if self.wake.pending.replace(false) {
+            self.wake.last.set(Some(Instant::now()));
+            self.notify()?;
+        }
+        Ok(())
+    }
+
+    fn notify(&self) -> Result<(), IpcError> {
+        self.notifier
+            .notify()
+            .map(drop)
+            .map_err(|e| ipc_err(format!("notify on `{}`", self.name))(&e))
+    }
+
+    /// Copies `data` into a loaned shared-memory sample, sends it and wakes the readers (see
+    /// [`with_wake_interval`](Self::with_wake_interval)).
     pub fn send(&self, header: H, data: &[T]) -> Result<(), IpcError> {
         let mut sample = self
             .publisher
@@ -326,9 +379,9 @@ where
         sample
             .send()
             .map_err(|e| ipc_err(format!("send on `{}`", self.name))(&e))?;
-        self.notifier
-            .notify()
-            .map_err(|e| ipc_err(format!("notify on `{}`", self.name))(&e))?;
+        if self.wake.due(Instant::now()) {
+            self.notify()?;
+        }
         Ok(())
     }
 }
@@ -680,5 +733,55 @@ mod tests {
         assert!(runs_with_files().contains(&run));
         remove_run(&run).expect("clean");
         assert!(run_files(&run).is_empty(), "{:?}", run_files(&run));
+    }
+
+    /// Wake-ups the listener has pending (drains them).
+    fn wakeups<T, H>(rx: &Receiver<T, H>) -> usize
+    where
+        T: Debug + Copy + ZeroCopySend + 'static,
+        H: Debug + Copy + ZeroCopySend + 'static,
+    {
+        let mut n = 0;
+        rx.listener().try_wait(|_| n += 1).expect("try_wait");
+        n
+    }
+
+    #[test]
+    fn a_wake_interval_batches_wakeups_but_delivers_every_sample() {
+        let run = format!("w{}", std::process::id());
+        let bus = Bus::connect(&run, "test").expect("node");
+        let rx: Receiver<u32, crate::wire::TickHeader> =
+            bus.receiver(&TELEMETRY, None).expect("receiver");
+        let interval = Duration::from_millis(200);
+        let tx: Sender<u32, crate::wire::TickHeader> = bus
+            .sender(&TELEMETRY, None, 1)
+            .expect("sender")
+            .with_wake_interval(interval);
+        let send = |tick| {
+            let h = crate::wire::TickHeader {
+                tick,
+                ..Default::default()
+            };
+            tx.send(h, &[tick as u32]).expect("send");
+        };
+        send(0);
+        assert_eq!(wakeups(&rx), 1, "the first send wakes");
+        send(1);
+        send(2);
+        assert_eq!(wakeups(&rx), 0, "sends within the interval do not");
+        tx.flush().expect("flush");
+        assert_eq!(wakeups(&rx), 1, "flush wakes for the pending sends");
+        tx.flush().expect("flush");
+        assert_eq!(wakeups(&rx), 0, "nothing pending, no wake-up");
+        std::thread::sleep(interval);
+        send(3);
+        assert_eq!(wakeups(&rx), 1, "a send after the interval wakes");
+        let mut ticks = Vec::new();
+        while let Some(s) = rx.try_recv().expect("receive") {
+            ticks.push(s.user_header().tick);
+        }
+        assert_eq!(ticks, [0, 1, 2, 3]);
+        drop((tx, rx, bus));
+        remove_run(&run).expect("clean");
     }
 }

@@ -167,7 +167,9 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
     let terrain_rx = bus.receiver::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None)?;
     let rollout_tx =
         bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, t_steps * n + n)?;
-    let tele_tx = bus.sender::<EnvTick, TickHeader>(&ipc::TELEMETRY, None, n)?;
+    let tele_tx = bus
+        .sender::<EnvTick, TickHeader>(&ipc::TELEMETRY, None, n)?
+        .with_wake_interval(Duration::from_micros(cfg.sim.telemetry_notify_us as u64));
 
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
     let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
@@ -236,6 +238,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             slot: 0,
         };
         rollout_tx.send(header, &chunk)?;
+        tele_tx.flush()?;
         chunk_id += 1;
         tracing::debug!(
             chunk = chunk_id,
@@ -268,6 +271,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             }
         }
     }
+    tele_tx.flush()?;
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(
         env_steps,
