@@ -42,8 +42,16 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         .collect();
     assert_eq!(
         table1.len(),
-        8,
-        "three models and switching × two areas:\n{report}"
+        12,
+        "three models and switching × two areas and the mixed course:\n{report}"
+    );
+    let checks = report
+        .lines()
+        .filter(|l| l.ends_with("| yes |") || l.ends_with("| no |"))
+        .count();
+    assert_eq!(
+        checks, 6,
+        "two specialist claims, switching vs the best single model in three areas, switching vs general on the mixed course:\n{report}"
     );
     let table3 = report
         .lines()

@@ -203,20 +203,24 @@ impl Default for RunConfig {
     }
 }
 
-/// Which training area an env lives in (SPEC S1).
+/// Which area an env lives in: SPEC S1's two training areas, or the mixed course (our
+/// extension, for issue 7's switching evaluation), flat ground that turns rough part-way.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AreaKind {
     Flat,
     Rough,
+    Mixed,
 }
 
 impl AreaKind {
-    /// The wire and CSV code: 0 flat, 1 rough.
+    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed. Telemetry never carries 2: a mixed
+    /// env reports the ground under the robot.
     pub fn code(self) -> u8 {
         match self {
             AreaKind::Flat => 0,
             AreaKind::Rough => 1,
+            AreaKind::Mixed => 2,
         }
     }
 
@@ -224,6 +228,7 @@ impl AreaKind {
         match self {
             AreaKind::Flat => "flat",
             AreaKind::Rough => "rough",
+            AreaKind::Mixed => "mixed",
         }
     }
 }
@@ -255,6 +260,9 @@ pub struct SimConfig {
     pub flat_envs: usize,
     /// Envs in the rough area. 0 ..= 1024. Default 0.
     pub rough_envs: usize,
+    /// Envs on the mixed course (`terrain.mixed-area`), after the rough ones. 0 ..= 1024.
+    /// Default 0.
+    pub mixed_envs: usize,
     /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
     pub threads: usize,
     /// The policy slot the envs act with, or `switch` (DESIGN §5). A slot without a policy
@@ -285,6 +293,7 @@ impl Default for SimConfig {
         Self {
             flat_envs: 9,
             rough_envs: 0,
+            mixed_envs: 0,
             threads: 2,
             acting: Acting::General,
             switch_dwell: 10,
@@ -301,16 +310,38 @@ impl Default for SimConfig {
 
 impl SimConfig {
     pub fn num_envs(&self) -> usize {
-        self.flat_envs + self.rough_envs
+        self.flat_envs + self.rough_envs + self.mixed_envs
     }
 
-    /// The area of env `i`: flat envs first, then rough.
+    /// The area of env `i`: flat envs first, then rough, then mixed.
     pub fn area_of(&self, env: usize) -> AreaKind {
         if env < self.flat_envs {
             AreaKind::Flat
-        } else {
+        } else if env < self.flat_envs + self.rough_envs {
             AreaKind::Rough
+        } else {
+            AreaKind::Mixed
         }
+    }
+
+    /// "4 flat + 4 rough envs", with "+ n mixed" when the mixed course has envs.
+    pub fn describe_envs(&self) -> String {
+        let mixed = if self.mixed_envs > 0 {
+            format!(" + {} mixed", self.mixed_envs)
+        } else {
+            String::new()
+        };
+        format!(
+            "{} flat + {} rough{mixed} envs",
+            self.flat_envs, self.rough_envs
+        )
+    }
+
+    /// `n` envs, all in `area`.
+    pub fn only_in(&mut self, area: AreaKind, n: usize) {
+        self.flat_envs = if area == AreaKind::Flat { n } else { 0 };
+        self.rough_envs = if area == AreaKind::Rough { n } else { 0 };
+        self.mixed_envs = if area == AreaKind::Mixed { n } else { 0 };
     }
 
     /// Decision step, seconds (0.1 by default, SPEC S2).
@@ -329,6 +360,13 @@ pub struct TerrainConfig {
     pub flat_area: Rect,
     /// Rough area rectangle. Default x ∈ [-9.0, -7.5], z ∈ [1.5, 5.0] (SPEC S1).
     pub rough_area: Rect,
+    /// The mixed course (not in the paper): a strip whose robots cross between flat and rough
+    /// ground. Default x ∈ [-6.0, -3.0], z ∈ [2.25, 3.25], between the two areas.
+    pub mixed_area: Rect,
+    /// The rough part of the mixed course: its bumps are the rough area's, with the same
+    /// `blend` at the edge; the rest of the course is flat. Default x ∈ [-6.0, -4.5],
+    /// z ∈ [2.25, 3.25] (the half towards the rough area).
+    pub mixed_rough: Rect,
     /// Heightfield cell size, metres. [0.005, 0.5]. Default 0.04.
     pub cell_size: f64,
     /// Extra floor around each area, metres, so a robot at the edge still has ground. [0.5, 10]. Default 1.0.
@@ -364,6 +402,14 @@ impl Default for TerrainConfig {
             rough_area: Rect {
                 x: [-9.0, -7.5],
                 z: [1.5, 5.0],
+            },
+            mixed_area: Rect {
+                x: [-6.0, -3.0],
+                z: [2.25, 3.25],
+            },
+            mixed_rough: Rect {
+                x: [-6.0, -4.5],
+                z: [2.25, 3.25],
             },
             cell_size: 0.04,
             border: 1.0,
@@ -828,6 +874,15 @@ impl Config {
         }
         let s = &self.sim;
         count_in("sim.flat-envs", s.flat_envs, 0, 1024)?;
+        count_in("sim.rough-envs", s.rough_envs, 0, 1024)?;
+        count_in("sim.mixed-envs", s.mixed_envs, 0, 1024)?;
+        if s.num_envs() == 0 {
+            return Err(invalid(
+                "sim.flat-envs",
+                s.flat_envs,
+                "flat-envs + rough-envs + mixed-envs must be at least 1",
+            ));
+        }
         count_in("sim.switch-dwell", s.switch_dwell, 1, 10_000)?;
         count_in(
             "sim.telemetry-notify-us",
@@ -835,14 +890,6 @@ impl Config {
             0,
             1_000_000,
         )?;
-        count_in("sim.rough-envs", s.rough_envs, 0, 1024)?;
-        if s.num_envs() == 0 {
-            return Err(invalid(
-                "sim.flat-envs",
-                s.flat_envs,
-                "flat-envs + rough-envs must be at least 1",
-            ));
-        }
         count_in("sim.threads", s.threads, 1, 64)?;
         in_range("sim.physics-dt", s.physics_dt, 1e-4, 0.1)?;
         count_in("sim.substeps", s.substeps, 1, 100)?;
@@ -850,6 +897,8 @@ impl Config {
         for (field, a) in [
             ("sim.terrain.flat-area", t.flat_area),
             ("sim.terrain.rough-area", t.rough_area),
+            ("sim.terrain.mixed-area", t.mixed_area),
+            ("sim.terrain.mixed-rough", t.mixed_rough),
         ] {
             if !(a.x[0] < a.x[1] && a.z[0] < a.z[1])
                 || a.x.iter().chain(&a.z).any(|v| !v.is_finite())
@@ -1161,11 +1210,16 @@ mod tests {
         let s = SimConfig {
             flat_envs: 2,
             rough_envs: 1,
+            mixed_envs: 1,
             ..SimConfig::default()
         };
+        use AreaKind::{Flat, Mixed, Rough};
         assert_eq!(
-            (0..3).map(|i| s.area_of(i)).collect::<Vec<_>>(),
-            vec![AreaKind::Flat, AreaKind::Flat, AreaKind::Rough]
+            (0..4).map(|i| s.area_of(i)).collect::<Vec<_>>(),
+            vec![Flat, Flat, Rough, Mixed]
         );
+        let mut only = s.clone();
+        only.only_in(Mixed, 3);
+        assert_eq!((only.num_envs(), only.area_of(0)), (3, Mixed));
     }
 }

@@ -14,6 +14,7 @@ use std::path::Path;
 
 const FLAT: RGBColor = RGBColor(31, 119, 180);
 const ROUGH: RGBColor = RGBColor(214, 39, 40);
+const MIXED: RGBColor = RGBColor(148, 103, 189);
 use common::plot::FONT;
 const GRID: RGBColor = RGBColor(242, 242, 242);
 
@@ -21,6 +22,7 @@ fn area_color(area: AreaKind) -> RGBColor {
     match area {
         AreaKind::Flat => FLAT,
         AreaKind::Rough => ROUGH,
+        AreaKind::Mixed => MIXED,
     }
 }
 

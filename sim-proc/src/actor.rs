@@ -88,7 +88,7 @@ impl Actor {
                 terminated: u8::from(end.is_some_and(|e| e.terminated())),
                 truncated: u8::from(end.is_some_and(|e| e.truncated())),
                 success: u8::from(end == Some(Ending::Success)),
-                area: env.area.code(),
+                area: env.ground().code(),
                 estimated_class: classes.get(i).copied().unwrap_or(wire::CLASS_UNKNOWN),
                 ..Transition::default()
             });
@@ -134,7 +134,7 @@ impl Actor {
             });
             *t = EnvTick {
                 env: env.id as u32,
-                area: env.area.code(),
+                area: env.ground().code(),
                 events,
                 slot: acted.0.index() as u8,
                 pos: p.pos.map(|v| v as f32),

@@ -97,6 +97,7 @@ impl Env {
         let rect = match area {
             AreaKind::Flat => cfg.terrain.flat_area,
             AreaKind::Rough => cfg.terrain.rough_area,
+            AreaKind::Mixed => cfg.terrain.mixed_area,
         };
         let mut rng = Rng::derive(seed, id as u64);
         let (world, robot) = spawn(cfg, terrain, &rect, &mut rng);
@@ -124,6 +125,22 @@ impl Env {
         let start = self.pose().ground();
         let target = task::draw_target(&self.cfg.task, &self.rect, start, &mut self.rng);
         self.episode = Episode::new(&self.cfg.task, start, target);
+    }
+
+    /// The ground under the robot, flat or rough: the env's area, or on the mixed course
+    /// whichever part of it the robot is on. What telemetry reports as the true label.
+    pub fn ground(&self) -> AreaKind {
+        match self.area {
+            AreaKind::Mixed => {
+                let [x, _, z] = self.pose().pos;
+                if self.cfg.terrain.mixed_rough.contains(x, z, 0.0) {
+                    AreaKind::Rough
+                } else {
+                    AreaKind::Flat
+                }
+            }
+            area => area,
+        }
     }
 
     pub fn pose(&self) -> PoseState {
@@ -345,5 +362,32 @@ mod tests {
         assert!(bad.observe().iter().all(|v| v.is_finite()));
         // The other env never noticed.
         assert_eq!(good.step([1.0, 1.0]).faults, 0);
+    }
+
+    #[test]
+    fn a_mixed_course_env_reports_the_ground_under_it() {
+        let cfg = SimConfig {
+            flat_envs: 0,
+            mixed_envs: 16,
+            ..SimConfig::default()
+        };
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let grounds: Vec<(AreaKind, AreaKind)> = (0..16)
+            .map(|id| {
+                let env = Env::new(id, &cfg, &terrain, 3);
+                let [x, _, z] = env.pose().pos;
+                assert!(cfg.terrain.mixed_area.contains(x, z, 0.0));
+                let under = if cfg.terrain.mixed_rough.contains(x, z, 0.0) {
+                    AreaKind::Rough
+                } else {
+                    AreaKind::Flat
+                };
+                (env.ground(), under)
+            })
+            .collect();
+        assert!(grounds.iter().all(|(g, under)| g == under), "{grounds:?}");
+        for kind in [AreaKind::Flat, AreaKind::Rough] {
+            assert!(grounds.iter().any(|(g, _)| *g == kind), "{grounds:?}");
+        }
     }
 }

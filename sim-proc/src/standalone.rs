@@ -93,7 +93,7 @@ pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
     TelemetryRow {
         env: env.id as u32,
         tick: env.tick - 1,
-        area: env.area,
+        area: env.ground(),
         episode: env.episode_index - u64::from(info.ending.is_some()),
         x: p.pos[0],
         y: p.pos[1],

@@ -1,4 +1,5 @@
-//! The lava-tube floor: a height grid covering both training areas (SPEC S1).
+//! The lava-tube floor: a height grid covering both training areas (SPEC S1) and the mixed
+//! course.
 //!
 //! Procedural by default (deterministic from `terrain.seed`): millimetre micro-relief
 //! everywhere, plus multi-octave bumps inside the rough area scaled by `roughness-scale`.
@@ -32,13 +33,16 @@ impl Terrain {
         }
     }
 
-    /// SPEC S1 (interpretation): a procedural floor covering both areas plus a border.
+    /// SPEC S1 (interpretation): a procedural floor covering both areas and the mixed course
+    /// plus a border; bumps in the rough area and the mixed course's rough part.
     pub fn procedural(cfg: &TerrainConfig) -> Self {
-        let (f, r) = (&cfg.flat_area, &cfg.rough_area);
-        let x0 = f.x[0].min(r.x[0]) - cfg.border;
-        let x1 = f.x[1].max(r.x[1]) + cfg.border;
-        let z0 = f.z[0].min(r.z[0]) - cfg.border;
-        let z1 = f.z[1].max(r.z[1]) + cfg.border;
+        let areas = [cfg.flat_area, cfg.rough_area, cfg.mixed_area];
+        let lo = |f: fn(&Rect) -> f64| areas.iter().map(f).fold(f64::INFINITY, f64::min);
+        let hi = |f: fn(&Rect) -> f64| areas.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+        let x0 = lo(|a| a.x[0]) - cfg.border;
+        let x1 = hi(|a| a.x[1]) + cfg.border;
+        let z0 = lo(|a| a.z[0]) - cfg.border;
+        let z1 = hi(|a| a.z[1]) + cfg.border;
         let cols = ((x1 - x0) / cfg.cell_size).ceil() as usize + 1;
         let rows = ((z1 - z0) / cfg.cell_size).ceil() as usize + 1;
         let micro = Noise::new(cfg.seed, 0);
@@ -50,7 +54,12 @@ impl Terrain {
                 let (x, z) = (x0 + j as f64 * cfg.cell_size, z0 + i as f64 * cfg.cell_size);
                 let mut h = cfg.flat_relief
                     * micro.fbm(x / cfg.flat_wavelength, z / cfg.flat_wavelength, 2);
-                let w = rough_weight(r, cfg.blend, x, z);
+                let w = rough_weight(&cfg.rough_area, cfg.blend, x, z).max(rough_weight(
+                    &cfg.mixed_rough,
+                    cfg.blend,
+                    x,
+                    z,
+                ));
                 if w > 0.0 {
                     let octaves = cfg.rough_octaves;
                     h += w
@@ -336,6 +345,23 @@ mod tests {
         let rough = rms_slope(&a, &cfg.rough_area);
         assert!(flat > 0.0, "the flat area has micro-relief");
         assert!(rough > 2.5 * flat, "rough {rough} vs flat {flat}");
+        // The mixed course: rough where it says, flat past the blend.
+        let course_rough = rms_slope(&a, &cfg.mixed_rough);
+        let course_flat = rms_slope(
+            &a,
+            &Rect {
+                x: [cfg.mixed_rough.x[1] + cfg.blend, cfg.mixed_area.x[1]],
+                z: cfg.mixed_area.z,
+            },
+        );
+        assert!(
+            course_rough > 0.7 * rough && course_rough < 1.3 * rough,
+            "course's rough part {course_rough} vs rough area {rough}"
+        );
+        assert!(
+            course_flat < 1.3 * flat,
+            "course's flat part {course_flat} vs flat area {flat}"
+        );
         // SPEC S1: the flat area's relief stays within its peak height, and is not a plane.
         let hs: Vec<f64> = (0..100)
             .map(|k| a.height_at(-2.0 + 0.02 * k as f64, 0.0))

@@ -7,10 +7,9 @@ use std::process::ExitCode;
 pub fn check_config(path: &Path) -> anyhow::Result<ExitCode> {
     let cfg = Config::load(path)?;
     println!(
-        "{}: ok ({} flat + {} rough envs, {:?} mode, {} steps)",
+        "{}: ok ({}, {:?} mode, {} steps)",
         path.display(),
-        cfg.sim.flat_envs,
-        cfg.sim.rough_envs,
+        cfg.sim.describe_envs(),
         cfg.run.mode,
         cfg.run.total_steps
     );

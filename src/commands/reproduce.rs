@@ -48,6 +48,9 @@ const PAPER_TABLE_1: [(&str, [PaperCell; 2]); 3] = [
     ("RTM", [(98.0, 8.33, 5.92), (96.0, 8.96, 5.74)]),
 ];
 
+/// Where stage f evaluates every model: SPEC S8's two areas, then the mixed course.
+const EVAL_AREAS: [AreaKind; 3] = [AreaKind::Flat, AreaKind::Rough, AreaKind::Mixed];
+
 /// SPEC S7's Table 3: window, accuracy %.
 const PAPER_TABLE_3: [(u64, f64); 4] = [(10, 61.13), (20, 70.73), (40, 85.87), (70, 98.79)];
 
@@ -169,9 +172,8 @@ impl Pipeline {
         cfg.run.out_dir = self.out.clone();
         cfg.validate()?;
         self.say(&format!(
-            "{name}: {} flat + {} rough envs, {} steps, learners {:?}",
-            cfg.sim.flat_envs,
-            cfg.sim.rough_envs,
+            "{name}: {}, {} steps, learners {:?}",
+            cfg.sim.describe_envs(),
             cfg.run.total_steps,
             cfg.run
                 .learners
@@ -253,10 +255,7 @@ impl Pipeline {
         eval: &Path,
     ) -> anyhow::Result<Cell> {
         let r = &self.base.reproduce;
-        let mut cfg = match area {
-            AreaKind::Flat => self.envs(r.eval_envs, 0),
-            AreaKind::Rough => self.envs(0, r.eval_envs),
-        };
+        let mut cfg = self.only_in(area, r.eval_envs);
         cfg.run.learners.clear();
         cfg.run.frozen = frozen.clone();
         cfg.run.mode = common::config::LearnMode::Async;
@@ -298,6 +297,14 @@ impl Pipeline {
         let mut c = self.base.clone();
         c.sim.flat_envs = flat;
         c.sim.rough_envs = rough;
+        c.sim.mixed_envs = 0;
+        c
+    }
+
+    /// The base config with `n` envs, all in `area`.
+    fn only_in(&self, area: AreaKind, n: usize) -> Config {
+        let mut c = self.base.clone();
+        c.sim.only_in(area, n);
         c
     }
 }
@@ -428,11 +435,8 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
         std::fs::create_dir_all(p.fresh("f-eval")?)?;
         let mut cells = Vec::new();
         for (name, weights) in &models {
-            for area in [AreaKind::Flat, AreaKind::Rough] {
-                let mut cfg = match area {
-                    AreaKind::Flat => p.envs(r.eval_envs, 0),
-                    AreaKind::Rough => p.envs(0, r.eval_envs),
-                };
+            for area in EVAL_AREAS {
+                let mut cfg = p.only_in(area, r.eval_envs);
                 let mut cell = Cell {
                     episodes: 0,
                     successes: 0,
@@ -476,7 +480,7 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
                 p.checkpoint("e-specialists", PolicySlot::Rough)?,
             ),
         ];
-        for area in [AreaKind::Flat, AreaKind::Rough] {
+        for area in EVAL_AREAS {
             let cell = p.switching(area, &frozen.clone().into(), &eval)?;
             p.say(&format!(
                 "f-eval: switching on {} ground: {:.1}% of {} episodes, reach s {}",
@@ -546,12 +550,7 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
             .filter(|c| c.successes > 0)
             .map(|c| c.mean_reach_s)
             .collect();
-        let paper = PAPER_TABLE_1
-            .iter()
-            .find(|(m, _)| m == name)
-            .map_or("-".into(), |(_, a)| {
-                format!("{:.1}", a[area.code() as usize].0)
-            });
+        let paper = paper_cell(name, *area).map_or("-".into(), |(s, _, _)| format!("{s:.1}"));
         md += &format!(
             "| {name} | {} | {} | {} | {paper} |\n",
             area.name(),
@@ -588,6 +587,84 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
     Ok(md)
 }
 
+/// Issue 7's claims about Table 1, each checked on this run's cells: a model "at least as
+/// good" has the higher success rate, or the same one and a mean reach time no longer. Each
+/// row gives the success-rate difference with its 95 % interval (Wald), so a gap inside the
+/// sampling noise reads as one.
+fn shape_checks(cells: &[Evaluated]) -> String {
+    let find = |model: &str, area: AreaKind| {
+        cells
+            .iter()
+            .find(|(m, a, _)| m == model && *a == area)
+            .map(|c| c.2)
+    };
+    let best_single = |area: AreaKind| {
+        ["general", "FTM", "RTM"]
+            .into_iter()
+            .filter_map(|m| find(m, area).map(|c| (m, c)))
+            .max_by(|(_, a), (_, b)| rank(a).total_cmp(&rank(b)))
+    };
+    let mut claims = vec![
+        ("FTM", "general", AreaKind::Flat, false),
+        ("RTM", "general", AreaKind::Rough, false),
+    ];
+    for area in EVAL_AREAS {
+        if let Some((m, _)) = best_single(area) {
+            claims.push(("switching", m, area, false));
+        }
+    }
+    claims.push(("switching", "general", AreaKind::Mixed, true));
+    let mut md = String::from(
+        "\n## Shape checks (issue 7)\n\n| claim | success % | reach s | difference, pp (95 % CI) | holds |\n|---|---:|---:|---:|:---:|\n",
+    );
+    for (a, b, area, strictly) in claims {
+        let (Some(x), Some(y)) = (find(a, area), find(b, area)) else {
+            continue;
+        };
+        let holds = if strictly {
+            rank(&x) > rank(&y)
+        } else {
+            rank(&x) >= rank(&y)
+        };
+        let (d, half) = success_difference(&x, &y);
+        md += &format!(
+            "| {a} {} {b} on {} | {:.1} vs {:.1} | {} vs {} | {d:+.1} ± {half:.1} | {} |\n",
+            if strictly { "better than" } else { "≥" },
+            area.name(),
+            x.success_pct(),
+            y.success_pct(),
+            x.reach(),
+            y.reach(),
+            if holds { "yes" } else { "no" }
+        );
+    }
+    md
+}
+
+/// Orders cells by success rate, then by shorter mean reach time.
+fn rank(c: &Cell) -> f64 {
+    c.success_pct() * 1e3 - c.mean_reach_s.min(999.0)
+}
+
+/// Success-rate difference `x − y` in percentage points and the half-width of its 95 % Wald
+/// interval.
+fn success_difference(x: &Cell, y: &Cell) -> (f64, f64) {
+    let p = |c: &Cell| c.successes as f64 / c.episodes.max(1) as f64;
+    let var = |c: &Cell| p(c) * (1.0 - p(c)) / c.episodes.max(1) as f64;
+    (
+        100.0 * (p(x) - p(y)),
+        100.0 * 1.96 * (var(x) + var(y)).sqrt(),
+    )
+}
+
+/// The paper's Table 1 cell for `model` in `area`, if the paper has one.
+fn paper_cell(model: &str, area: AreaKind) -> Option<PaperCell> {
+    PAPER_TABLE_1
+        .iter()
+        .find(|(m, _)| *m == model)
+        .and_then(|(_, a)| a.get(area.code() as usize).copied())
+}
+
 /// Pools evaluation parts: counts add, reach-time moments combine exactly.
 fn merge(parts: &[Cell]) -> Cell {
     let episodes = parts.iter().map(|c| c.episodes).sum();
@@ -617,11 +694,7 @@ fn report(p: &Pipeline, cells: &[(String, AreaKind, Cell)]) -> anyhow::Result<St
            config is `config.toml` beside this report.\n\n## Table 1: success rate and reach time\n\n";
     md += "| model | area | ours: success % (episodes) | ours: reach s, mean (std) | paper: success % | paper: reach s |\n|---|---|---:|---:|---:|---:|\n";
     for (name, area, cell) in cells {
-        let paper = PAPER_TABLE_1
-            .iter()
-            .find(|(m, _)| m == name)
-            .map(|(_, a)| a[area.code() as usize]);
-        let (ps, pr) = paper.map_or(("-".into(), "-".into()), |(s, m, sd)| {
+        let (ps, pr) = paper_cell(name, *area).map_or(("-".into(), "-".into()), |(s, m, sd)| {
             (format!("{s:.1}"), format!("{m:.2} ({sd:.2})"))
         });
         md += &format!(
@@ -632,6 +705,7 @@ fn report(p: &Pipeline, cells: &[(String, AreaKind, Cell)]) -> anyhow::Result<St
             cell.reach()
         );
     }
+    md += &shape_checks(cells);
     let analysis = p.stage_dir("d-analysis");
     let table3 = std::fs::read_to_string(analysis.join("results.md"))
         .with_context(|| format!("cannot read {}", analysis.join("results.md").display()))?;
@@ -709,5 +783,38 @@ mod tests {
         assert_eq!((m.episodes, m.successes), (5, 3));
         assert!((m.mean_reach_s - 2.0).abs() < 1e-12);
         assert!((m.std_reach_s - (6.5f64 / 3.0).sqrt()).abs() < 1e-12);
+    }
+
+    #[test]
+    fn shape_checks_rank_by_success_then_reach_time() {
+        let cell = |episodes, successes, mean_reach_s| Cell {
+            episodes,
+            successes,
+            mean_reach_s,
+            std_reach_s: 0.0,
+        };
+        let mut cells = Vec::new();
+        for area in EVAL_AREAS {
+            cells.push(("general".to_string(), area, cell(100, 90, 5.0)));
+            cells.push(("FTM".to_string(), area, cell(100, 90, 4.0)));
+            cells.push(("RTM".to_string(), area, cell(100, 95, 6.0)));
+            cells.push(("switching".to_string(), area, cell(100, 95, 6.0)));
+        }
+        let md = shape_checks(&cells);
+        let row = |claim| row_of(&md, claim);
+        // Same success, faster: at least as good. Best single on flat is RTM (95 %).
+        assert!(row("FTM ≥ general on flat").ends_with("| yes |"));
+        assert!(row("switching ≥ RTM on flat").ends_with("| yes |"));
+        // 95 % vs 90 % of 100 each: +5.0 pp ± 1.96·sqrt(.95·.05/100 + .9·.1/100) = ±7.3.
+        assert!(row("switching better than general on mixed").contains("+5.0 ± 7.3 | yes |"));
+        cells[11].2 = cell(100, 95, 6.5);
+        assert!(row_of(&shape_checks(&cells), "switching ≥ RTM on mixed").ends_with("| no |"));
+    }
+
+    fn row_of(md: &str, claim: &str) -> String {
+        md.lines()
+            .find(|l| l.starts_with(&format!("| {claim} |")))
+            .unwrap_or_else(|| panic!("no row {claim} in\n{md}"))
+            .to_string()
     }
 }

@@ -142,9 +142,8 @@ pub fn execute(cfg: &Config, run_id: &str, quiet: bool) -> anyhow::Result<bool> 
     supervise::say(
         &bar,
         format!(
-            "run {run_id}: {} flat + {} rough envs, {:?} mode → {}",
-            cfg.sim.flat_envs,
-            cfg.sim.rough_envs,
+            "run {run_id}: {}, {:?} mode → {}",
+            cfg.sim.describe_envs(),
             cfg.run.mode,
             dir.display()
         ),

@@ -327,8 +327,7 @@ impl Plan {
     /// The resolved config of one measurement, writing into `dir`.
     pub fn config_for(&self, m: &Measurement, dir: &Path) -> Config {
         let mut cfg = self.runtime.clone();
-        cfg.sim.flat_envs = 0;
-        cfg.sim.rough_envs = m.envs;
+        cfg.sim.only_in(common::AreaKind::Rough, m.envs);
         cfg.sim.threads = m.threads;
         cfg.run.total_steps = self.ticks(m.envs) * m.envs as u64;
         cfg.run.out_dir = dir.to_path_buf();
