@@ -74,3 +74,28 @@ fn two_specialists_learn_side_by_side_on_their_own_terrain() {
         assert!(log.contains("learner starts a new policy"), "{log}");
     }
 }
+
+#[test]
+fn a_run_id_in_use_by_a_live_run_is_refused_before_anything_starts() {
+    let run_id = format!("busy-{}", std::process::id());
+    // This test process holds a node on the run's bus, as a live run's process would.
+    let bus = common::ipc::Bus::connect(&run_id, "holder").expect("node");
+    let (code, output) = support::lavatube_run("configs/smoke.toml", &run_id);
+    assert_ne!(code, 0, "{output}");
+    assert!(
+        output.contains(&format!(
+            "run id `{run_id}` is in use by a live run (holder (pid {})",
+            std::process::id()
+        )),
+        "{output}"
+    );
+    assert!(
+        !support::root()
+            .join("target/e2e-runs")
+            .join(&run_id)
+            .exists(),
+        "nothing started"
+    );
+    drop(bus);
+    common::ipc::remove_run(&run_id).expect("clean");
+}

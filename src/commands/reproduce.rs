@@ -158,6 +158,12 @@ impl Pipeline {
         Ok(dir)
     }
 
+    /// The shared-memory run id of stage `name`: unique to this process, so two pipelines
+    /// (two `--out` directories, or a test beside a long run) never meet on one bus.
+    fn run_id(&self, name: &str) -> String {
+        format!("{name}-{}", std::process::id())
+    }
+
     fn say(&self, line: &str) {
         eprintln!("reproduce: {line}");
     }
@@ -181,7 +187,7 @@ impl Pipeline {
                 .map(|s| s.name())
                 .collect::<Vec<_>>()
         ));
-        if !execute(&cfg, name, self.quiet)? {
+        if !execute(&cfg, name, &self.run_id(name), self.quiet)? {
             anyhow::bail!("interrupted during stage {name}; run again to resume");
         }
         self.finish(name, serde_json::json!({ "stage": name }))
@@ -268,7 +274,7 @@ impl Pipeline {
         let mut parts = Vec::new();
         while merge(&parts).episodes < r.eval_episodes {
             let name = format!("switch-{}-{}", area.name(), parts.len());
-            if !execute(&cfg, &name, self.quiet)? {
+            if !execute(&cfg, &name, &self.run_id(&name), self.quiet)? {
                 anyhow::bail!("interrupted during {name}; run again to resume");
             }
             let path = eval.join(&name).join("summary.json");

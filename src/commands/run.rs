@@ -98,24 +98,40 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         None => Config::default(),
     };
     let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
-    Ok(if execute(&cfg, &run_id, args.quiet)? {
+    Ok(if execute(&cfg, &run_id, &run_id, args.quiet)? {
         ExitCode::SUCCESS
     } else {
         ExitCode::from(130)
     })
 }
 
-/// Runs `cfg` as run `run_id` in `<run.out-dir>/<run_id>/` to the end. Returns false when
-/// interrupted (Ctrl-C); fails when a process failed for good.
-pub fn execute(cfg: &Config, run_id: &str, quiet: bool) -> anyhow::Result<bool> {
+/// Runs `cfg` in `<run.out-dir>/<dir_name>/` to the end, its processes meeting in the shared
+/// memory of run `run_id`. Returns false when interrupted (Ctrl-C); fails when a process
+/// failed for good, or before anything starts when a live run already uses `run_id`.
+pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyhow::Result<bool> {
     let bins = [
         supervise::locate("learner-proc")?,
         supervise::locate("estimator-proc")?,
         supervise::locate("sim-proc")?,
     ];
     let run_id = run_id.to_string();
+    // Two runs on one id would read each other's messages and remove each other's shared
+    // memory at the end.
+    let live: Vec<String> = ipc::list_nodes(&run_id)
+        .unwrap_or_default()
+        .into_iter()
+        .filter(|n| n.alive)
+        .map(|n| format!("{} (pid {})", n.name, n.pid))
+        .collect();
+    if !live.is_empty() {
+        return Err(UserError(format!(
+            "run id `{run_id}` is in use by a live run ({}): pick another --run-id",
+            live.join(", ")
+        ))
+        .into());
+    }
     // Absolute, so logs and the children's arguments name it unambiguously.
-    let dir = std::path::absolute(cfg.run.out_dir.join(&run_id))
+    let dir = std::path::absolute(cfg.run.out_dir.join(dir_name))
         .with_context(|| format!("cannot resolve {}", cfg.run.out_dir.display()))?;
     if dir.exists() {
         return Err(UserError(format!(
