@@ -11,7 +11,7 @@
 //!    only then score against the true area labels (steps 3–4).
 
 use crate::gmm::{self, FitOptions, Gmm};
-use crate::rolling::{Ddof, rolling_std};
+use crate::rolling::{Ddof, rolling_path, rolling_std};
 use crate::{EstimatorError, Result};
 use common::{AreaKind, TelemetryRow};
 use serde::Serialize;
@@ -84,6 +84,8 @@ pub struct Series {
     pub sin_pitch: Vec<f64>,
     /// sin θz (roll), for the time-series figure.
     pub sin_roll: Vec<f64>,
+    /// The robot's X-Z position, metres, for the stationary gate (`estimator.min-speed`).
+    pub xz: Vec<[f64; 2]>,
 }
 
 /// Splits rows (any interleaving of envs) into series and drops each one's first `warmup`
@@ -104,6 +106,7 @@ pub fn split_series(rows: &[TelemetryRow], warmup: usize) -> Vec<Series> {
                 first_tick: row.tick,
                 sin_pitch: Vec::new(),
                 sin_roll: Vec::new(),
+                xz: Vec::new(),
             };
             if let Some((_, finished)) = open.insert(row.env, (row.tick, fresh)) {
                 done.push(finished);
@@ -113,6 +116,7 @@ pub fn split_series(rows: &[TelemetryRow], warmup: usize) -> Vec<Series> {
             *last = row.tick;
             s.sin_pitch.push(row.sin_pitch);
             s.sin_roll.push(row.theta_z.sin());
+            s.xz.push([row.x, row.z]);
         }
     }
     done.extend(open.into_values().map(|(_, s)| s));
@@ -123,6 +127,7 @@ pub fn split_series(rows: &[TelemetryRow], warmup: usize) -> Vec<Series> {
             s.first_tick += warmup as u64;
             s.sin_pitch.drain(..warmup);
             s.sin_roll.drain(..warmup);
+            s.xz.drain(..warmup);
             s
         })
         .collect();
@@ -136,6 +141,8 @@ pub struct WindowValues {
     pub window: usize,
     pub values: Vec<f64>,
     pub areas: Vec<AreaKind>,
+    /// Windows left out as stationary.
+    pub stationary: usize,
 }
 
 impl WindowValues {
@@ -151,16 +158,37 @@ impl WindowValues {
 }
 
 /// Rolling std of sin θx within each series (no window spans two series), pooled.
-pub fn window_values(series: &[Series], window: usize) -> Result<WindowValues> {
+///
+/// Windows whose path is shorter than `min_step_travel` metres per step are left out and
+/// counted in [`WindowValues::stationary`] (`estimator.min-speed`; 0 keeps all, as the paper).
+pub fn window_values(
+    series: &[Series],
+    window: usize,
+    min_step_travel: f64,
+) -> Result<WindowValues> {
     let mut out = WindowValues {
         window,
         ..WindowValues::default()
     };
+    let min_travel = min_step_travel * (window - 1) as f64;
     // SPEC S7 step 2: each series rolled on its own, then pooled.
     for s in series {
         let v = rolling_std(&s.sin_pitch, window, DDOF)?;
-        out.areas.extend(std::iter::repeat_n(s.area, v.len()));
-        out.values.extend(v);
+        let path = rolling_path(&s.xz, window)?;
+        for (x, travelled) in v.into_iter().zip(path) {
+            if travelled >= min_travel {
+                out.values.push(x);
+                out.areas.push(s.area);
+            } else {
+                out.stationary += 1;
+            }
+        }
+    }
+    if out.values.is_empty() && out.stationary > 0 {
+        return Err(EstimatorError::AllStationary {
+            window,
+            stationary: out.stationary,
+        });
     }
     if out.values.is_empty() {
         return Err(EstimatorError::NoWindows {
@@ -187,6 +215,8 @@ pub struct WindowResult {
     pub window: usize,
     /// Pooled values fitted (both areas).
     pub n: usize,
+    /// Windows left out as stationary (`estimator.min-speed`).
+    pub stationary: usize,
     pub n_flat: usize,
     pub n_rough: usize,
     /// Mixture parameters, components by ascending mean (0 = flat).
@@ -216,8 +246,13 @@ pub fn score(model: &Gmm, values: &[f64], areas: &[AreaKind]) -> (f64, Vec<Vec<u
 
 /// Fits and scores one window size (SPEC S7 steps 2–4). The labels are used only by `score`,
 /// after the fit.
-pub fn analyze_window(series: &[Series], window: usize, opts: &FitOptions) -> Result<WindowResult> {
-    let wv = window_values(series, window)?;
+pub fn analyze_window(
+    series: &[Series],
+    window: usize,
+    opts: &FitOptions,
+    min_step_travel: f64,
+) -> Result<WindowResult> {
+    let wv = window_values(series, window, min_step_travel)?;
     // SPEC S7 step 3: unsupervised, the fit sees the values only.
     let report = gmm::fit(&wv.values, opts)?;
     let (accuracy, confusion) = score(&report.model, &wv.values, &wv.areas);
@@ -225,6 +260,7 @@ pub fn analyze_window(series: &[Series], window: usize, opts: &FitOptions) -> Re
     Ok(WindowResult {
         window,
         n: wv.values.len(),
+        stationary: wv.stationary,
         n_flat: wv.areas.iter().filter(|a| **a == AreaKind::Flat).count(),
         n_rough: wv.areas.iter().filter(|a| **a == AreaKind::Rough).count(),
         weights: m.weights().to_vec(),
@@ -305,6 +341,7 @@ mod tests {
                 first_tick: 0,
                 sin_pitch: vec![0.0, 0.0, 0.0],
                 sin_roll: vec![0.0; 3],
+                xz: vec![[0.0; 2]; 3],
             },
             Series {
                 env: 0,
@@ -312,10 +349,11 @@ mod tests {
                 first_tick: 3,
                 sin_pitch: vec![1.0, 1.0, 1.0],
                 sin_roll: vec![0.0; 3],
+                xz: vec![[0.0; 2]; 3],
             },
         ];
         // Windows of 2 inside each constant series: all zero; a spanning window would be 0.707.
-        let wv = window_values(&series, 2).expect("values");
+        let wv = window_values(&series, 2, 0.0).expect("values");
         assert_eq!(wv.values, vec![0.0; 4]);
         assert_eq!(
             wv.areas,
@@ -327,10 +365,46 @@ mod tests {
             ]
         );
         assert!(matches!(
-            window_values(&series, 4),
+            window_values(&series, 4, 0.0),
             Err(EstimatorError::NoWindows {
                 window: 4,
                 longest: 3
+            })
+        ));
+    }
+
+    #[test]
+    fn stationary_windows_are_left_out_and_counted() {
+        // 6 ticks: driving 1 cm per tick for 3 ticks, then standing still.
+        let s = Series {
+            env: 0,
+            area: AreaKind::Rough,
+            first_tick: 0,
+            sin_pitch: vec![0.0, 0.1, 0.0, 0.1, 0.1, 0.1],
+            sin_roll: vec![0.0; 6],
+            xz: [0.0, 0.01, 0.02, 0.03, 0.03, 0.03]
+                .map(|x| [x, 0.0])
+                .to_vec(),
+        };
+        // Windows of 3: paths 2, 2, 1, 0 cm. A 0.75 cm/step gate needs 1.5 cm.
+        let wv = window_values(std::slice::from_ref(&s), 3, 0.0075).expect("values");
+        assert_eq!((wv.values.len(), wv.stationary), (2, 2));
+        assert_eq!(
+            window_values(std::slice::from_ref(&s), 3, 0.0)
+                .expect("all")
+                .values
+                .len(),
+            4
+        );
+        let still = Series {
+            xz: vec![[0.0; 2]; 6],
+            ..s
+        };
+        assert!(matches!(
+            window_values(&[still], 3, 0.0075),
+            Err(EstimatorError::AllStationary {
+                window: 3,
+                stationary: 4
             })
         ));
     }

@@ -56,6 +56,10 @@ pub enum EstimatorError {
         "window {window}: no series is long enough for one full window after the warm-up (longest: {longest} ticks)"
     )]
     NoWindows { window: usize, longest: usize },
+    #[error(
+        "window {window}: the robots stood still in all {stationary} windows (estimator.min-speed; 0 keeps every window)"
+    )]
+    AllStationary { window: usize, stationary: usize },
     #[error("window size {window} is out of range: it must be at least 2")]
     BadWindow { window: usize },
     #[error("env {env} is out of range: the estimator tracks {envs} env(s)")]

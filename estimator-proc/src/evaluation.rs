@@ -226,6 +226,7 @@ mod tests {
             first_tick: 0,
             sin_pitch: (0..n).map(|_| sd * rng.normal()).collect(),
             sin_roll: vec![0.0; n],
+            xz: vec![[0.0; 2]; n],
         }
     }
 

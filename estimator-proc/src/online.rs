@@ -23,9 +23,15 @@
 //! errors; tempered, it accumulates roughly one window's worth of independent evidence. It
 //! trades a few ticks of detection delay for far fewer misclassifications at short windows.
 //! `stay-prob = 0` reports the raw posterior.
+//!
+//! Stationary windows ([`OnlineEstimator::gate_stationary`], `estimator.min-speed`): when the
+//! robot's path over the window is shorter than the gate, the window std is neither pooled nor
+//! classified, and the env keeps its last estimate. A robot wedged on a rough bump holds its
+//! pitch still; without the gate it reads as flat ground, and a cluster of such windows can
+//! take over a mixture component.
 
 use crate::gmm::{self, FitOptions, Gmm};
-use crate::rolling::{Ddof, RollingStd};
+use crate::rolling::{Ddof, RollingPath, RollingStd};
 use crate::{EstimatorError, Result};
 use common::config::EstimatorConfig;
 
@@ -54,13 +60,18 @@ pub struct OnlineStats {
     pub observations: u64,
     pub fits: u64,
     pub failed_fits: u64,
+    /// Full windows left out as stationary.
+    pub stationary: u64,
 }
 
 #[derive(Debug, Clone)]
 struct EnvState {
     rolling: RollingStd,
+    travel: RollingPath,
     /// HMM belief over classes; empty until the env's first classified tick.
     belief: Vec<f64>,
+    /// The last class and its probability, kept through stationary windows.
+    held: Option<(usize, f64)>,
 }
 
 /// The newest `cap` window-std values of all envs (a ring; order is irrelevant to EM).
@@ -91,6 +102,8 @@ pub struct OnlineEstimator {
     refit_interval: u64,
     min_first_fit: usize,
     stay_prob: f64,
+    /// Path over a window below which it is stationary, metres; 0: no gate.
+    min_travel: f64,
     envs: Vec<EnvState>,
     pool: Pool,
     model: Option<Gmm>,
@@ -114,10 +127,13 @@ impl OnlineEstimator {
             refit_interval: (cfg.refit_every.max(1) * num_envs) as u64,
             min_first_fit: (MIN_POINTS_PER_COMPONENT * k).min(cfg.pool_size.max(k)),
             stay_prob: cfg.stay_prob,
+            min_travel: 0.0,
             envs: vec![
                 EnvState {
                     rolling,
+                    travel: RollingPath::new(cfg.online_window)?,
                     belief: Vec::with_capacity(k),
+                    held: None,
                 };
                 num_envs
             ],
@@ -149,6 +165,14 @@ impl OnlineEstimator {
         Ok(est)
     }
 
+    /// Leaves out windows whose path is shorter than `min_step_travel` (metres per tick,
+    /// [`common::Config::min_step_travel`]) per tick of the window, for observations that come
+    /// with a position ([`observe_at`](Self::observe_at)).
+    pub fn gate_stationary(mut self, min_step_travel: f64) -> Self {
+        self.min_travel = min_step_travel * (self.window - 1) as f64;
+        self
+    }
+
     pub fn model(&self) -> Option<&Gmm> {
         self.model.as_ref()
     }
@@ -169,13 +193,26 @@ impl OnlineEstimator {
             .get_mut(env)
             .ok_or(EstimatorError::EnvOutOfRange { env, envs })?;
         state.rolling.clear();
+        state.travel.clear();
         state.belief.clear();
+        state.held = None;
         Ok(())
     }
 
     /// Feeds env `env`'s sin θx for this tick and returns its estimate. A non-finite value is
     /// refused (and not fed), so one bad sample cannot poison the window.
     pub fn observe(&mut self, env: usize, sin_pitch: f64) -> Result<Estimate> {
+        self.observe_at(env, sin_pitch, None)
+    }
+
+    /// As [`observe`](Self::observe), with the robot's X-Z position for the stationary gate
+    /// ([`gate_stationary`](Self::gate_stationary)).
+    pub fn observe_at(
+        &mut self,
+        env: usize,
+        sin_pitch: f64,
+        position: Option<[f64; 2]>,
+    ) -> Result<Estimate> {
         let envs = self.envs.len();
         if env >= envs {
             return Err(EstimatorError::EnvOutOfRange { env, envs });
@@ -186,9 +223,15 @@ impl OnlineEstimator {
                 value: sin_pitch,
             });
         }
-        let window_std = self.envs[env].rolling.push(sin_pitch);
-        if let Some(s) = window_std {
-            self.pool.push(s);
+        let state = &mut self.envs[env];
+        let window_std = state.rolling.push(sin_pitch);
+        let moving = position
+            .and_then(|p| state.travel.push(p))
+            .is_none_or(|path| path >= self.min_travel);
+        match (window_std, moving) {
+            (Some(s), true) => self.pool.push(s),
+            (Some(_), false) => self.stats.stationary += 1,
+            (None, _) => {}
         }
         self.stats.observations += 1;
         self.maybe_refit();
@@ -202,6 +245,16 @@ impl OnlineEstimator {
         let (Some(s), Some(model)) = (window_std, self.model.as_ref()) else {
             return Ok(pending);
         };
+        if !moving {
+            return Ok(match self.envs[env].held {
+                Some((class, posterior)) => Estimate {
+                    class: Some(class),
+                    posterior,
+                    ..pending
+                },
+                None => pending,
+            });
+        }
         let k = model.components();
         if self.scratch.len() < k {
             self.scratch.resize(k, 0.0);
@@ -212,6 +265,7 @@ impl OnlineEstimator {
         let raw_class = argmax(joint);
         let raw_posterior = (joint[raw_class] - log_evidence).exp();
         if self.stay_prob <= 0.0 {
+            self.envs[env].held = Some((raw_class, raw_posterior));
             return Ok(Estimate {
                 class: Some(raw_class),
                 posterior: raw_posterior,
@@ -229,9 +283,11 @@ impl OnlineEstimator {
         }
         hmm_forward(belief, joint, 1.0 / self.window as f64, self.stay_prob);
         let class = argmax(belief);
+        let posterior = belief[class];
+        self.envs[env].held = Some((class, posterior));
         Ok(Estimate {
             class: Some(class),
-            posterior: belief[class],
+            posterior,
             raw_class: Some(raw_class),
             ..pending
         })
@@ -367,6 +423,53 @@ mod tests {
                 .all(|e| e[0].posterior > 0.5 && e[0].posterior <= 1.0)
         );
         assert!(est.stats().fits >= 2, "{:?}", est.stats());
+    }
+
+    #[test]
+    fn a_robot_that_stops_on_rough_ground_keeps_its_rough_estimate() {
+        // Window 20 at 0.1 s per tick, min speed 0.02 m/s: a window needs 3.8 cm of path.
+        let cfg = config(0.98);
+        for gated in [true, false] {
+            let mut est = OnlineEstimator::new(&cfg, 2, 3)
+                .expect("estimator")
+                .gate_stationary(if gated { 0.002 } else { 0.0 });
+            let mut rng = common::Rng::new(4);
+            // Both drive at 1 cm per tick; env 0 on flat, env 1 on rough ground.
+            let mut last = [None, None];
+            for t in 0..1_500 {
+                let x = 0.01 * t as f64;
+                let a = est.observe_at(0, 0.02 * rng.normal(), Some([x, 0.0]));
+                let b = est.observe_at(1, 0.08 * rng.normal(), Some([x, 1.0]));
+                last = [a.expect("observe").class, b.expect("observe").class];
+            }
+            assert_eq!(last, [Some(0), Some(1)], "classified while driving");
+            let pooled = est.pool.values.len();
+            // Env 1 wedges on a bump: pitch and position frozen (a hair of jitter).
+            for t in 0..300 {
+                let x = 0.01 * (1_500 + t) as f64;
+                est.observe_at(0, 0.02 * rng.normal(), Some([x, 0.0]))
+                    .expect("observe");
+                let jitter = 1e-5 * rng.normal();
+                last[1] = est
+                    .observe_at(1, -0.12 + jitter, Some([15.0 + jitter, 1.0]))
+                    .expect("observe")
+                    .class;
+            }
+            if gated {
+                assert_eq!(last[1], Some(1), "held through the stop");
+                // A window is stationary once at most 3 of its 19 steps are driven: after the
+                // first 16 ticks of the stop.
+                assert_eq!(est.stats().stationary, 300 - 16, "every stopped window");
+                assert_eq!(
+                    est.pool.values.len(),
+                    pooled + 300 + 16,
+                    "env 0's, 16 of env 1's"
+                );
+            } else {
+                assert_eq!(last[1], Some(0), "ungated, a still pitch reads as flat");
+                assert_eq!(est.stats().stationary, 0);
+            }
+        }
     }
 
     #[test]

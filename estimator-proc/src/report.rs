@@ -91,9 +91,9 @@ impl AnalysisReport {
         );
         let _ = writeln!(
             md,
-            "| window | flat mean (std) / rough mean (std) | accuracy | n | paper: flat / rough | paper accuracy |"
+            "| window | flat mean (std) / rough mean (std) | accuracy | n | stationary, left out | paper: flat / rough | paper accuracy |"
         );
-        let _ = writeln!(md, "|---:|---|---:|---:|---|---:|");
+        let _ = writeln!(md, "|---:|---|---:|---:|---:|---|---:|");
         for r in &self.windows {
             let paper = PAPER_TABLE_3.iter().find(|p| p.window == r.window);
             let (paper_cell, paper_acc) =
@@ -108,11 +108,12 @@ impl AnalysisReport {
                 });
             let _ = writeln!(
                 md,
-                "| {} | {} | {:.2} % | {} | {paper_cell} | {paper_acc} |",
+                "| {} | {} | {:.2} % | {} | {} | {paper_cell} | {paper_acc} |",
                 r.window,
                 components_cell(r),
                 100.0 * r.accuracy,
-                r.n
+                r.n,
+                r.stationary
             );
         }
         let _ = writeln!(

@@ -119,6 +119,69 @@ impl RollingStd {
     }
 }
 
+/// The ground distance a robot covered over its last `window` positions: the sum of the
+/// `window − 1` steps between them, O(1) per position; the same windows as [`RollingStd`],
+/// so the two can gate each other (`estimator.min-speed`).
+#[derive(Debug, Clone)]
+pub struct RollingPath {
+    steps: Vec<f64>,
+    head: usize,
+    len: usize,
+    sum: f64,
+    last: Option<[f64; 2]>,
+}
+
+impl RollingPath {
+    /// A window of `window` positions, at least 2.
+    pub fn new(window: usize) -> crate::Result<Self> {
+        if window < 2 {
+            return Err(crate::EstimatorError::BadWindow { window });
+        }
+        Ok(Self {
+            steps: vec![0.0; window - 1],
+            head: 0,
+            len: 0,
+            sum: 0.0,
+            last: None,
+        })
+    }
+
+    /// Adds a position (X-Z, metres) and returns the path length over the window once full.
+    pub fn push(&mut self, p: [f64; 2]) -> Option<f64> {
+        if let Some(q) = self.last.replace(p) {
+            let step = (p[0] - q[0]).hypot(p[1] - q[1]);
+            let n = self.steps.len();
+            if self.len == n {
+                self.sum -= self.steps[self.head];
+            } else {
+                self.len += 1;
+            }
+            self.steps[self.head] = step;
+            self.sum += step;
+            self.head = (self.head + 1) % n;
+            if self.head == 0 {
+                // Exact again once per lap, as `RollingStd`: no drift from the subtractions.
+                self.sum = self.steps[..self.len].iter().sum();
+            }
+        }
+        (self.len == self.steps.len()).then_some(self.sum.max(0.0))
+    }
+
+    /// Forgets every position.
+    pub fn clear(&mut self) {
+        self.head = 0;
+        self.len = 0;
+        self.sum = 0.0;
+        self.last = None;
+    }
+}
+
+/// Path lengths of `xz` over every full window, aligned with [`rolling_std`]'s values.
+pub fn rolling_path(xz: &[[f64; 2]], window: usize) -> crate::Result<Vec<f64>> {
+    let mut r = RollingPath::new(window)?;
+    Ok(xz.iter().filter_map(|&p| r.push(p)).collect())
+}
+
 /// The rolling std of `xs` at every index where a full window ends: `xs.len() − w + 1`
 /// values (none if the series is shorter than `w`), as pandas' `rolling(w).std().dropna()`.
 pub fn rolling_std(xs: &[f64], window: usize, ddof: Ddof) -> crate::Result<Vec<f64>> {
@@ -130,6 +193,30 @@ pub fn rolling_std(xs: &[f64], window: usize, ddof: Ddof) -> crate::Result<Vec<f
 mod tests {
     use super::*;
     use proptest::prelude::*;
+
+    #[test]
+    fn rolling_path_sums_the_steps_inside_the_window() {
+        // A 3-4-5 step, a 1 m step, a standstill, a 2 m step; window 3 = the last 2 steps.
+        let xz = [[0.0, 0.0], [3.0, 4.0], [4.0, 4.0], [4.0, 4.0], [4.0, 6.0]];
+        assert_eq!(rolling_path(&xz, 3).expect("window"), vec![6.0, 1.0, 2.0]);
+        let mut r = RollingPath::new(2).expect("window");
+        assert_eq!(r.push([0.0, 0.0]), None, "one position is no step");
+        assert_eq!(r.push([0.0, 0.5]), Some(0.5));
+        r.clear();
+        assert_eq!(
+            r.push([9.0, 9.0]),
+            None,
+            "cleared: no step from the old position"
+        );
+        assert!(RollingPath::new(1).is_err());
+        // Many laps: the running sum stays exact.
+        let walk: Vec<[f64; 2]> = (0..10_000).map(|i| [0.1 * i as f64, 0.0]).collect();
+        let last = *rolling_path(&walk, 70)
+            .expect("window")
+            .last()
+            .expect("full");
+        assert!((last - 6.9).abs() < 1e-9, "{last}");
+    }
 
     fn naive(xs: &[f64], ddof: Ddof) -> f64 {
         let n = xs.len() as f64;

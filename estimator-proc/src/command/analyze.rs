@@ -29,7 +29,11 @@ pub const FIG_DISTRIBUTION: &str = "fig7_std_distribution_w100.png";
 pub const FIG_CONFUSION: &str = "fig8_confusion_w10_w70.png";
 
 pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
-    let (cfg, seed) = args.input.resolve()?;
+    let super::Resolved {
+        est: cfg,
+        seed,
+        min_step_travel: gate,
+    } = args.input.resolve()?;
     let path = &args.input.traces;
     let rows = traces::read_telemetry(path)?;
     let series = analysis::split_series(&rows, cfg.warmup_ticks);
@@ -39,11 +43,11 @@ pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
         .windows
         .iter()
         .map(|&w| {
-            analysis::analyze_window(&series, w, &opts).with_context(|| format!("window {w}"))
+            analysis::analyze_window(&series, w, &opts, gate).with_context(|| format!("window {w}"))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     create_dir(&args.out)?;
-    let figures = draw_figures(&args.out, &series, &results, &opts)?;
+    let figures = draw_figures(&args.out, &series, &results, &opts, gate)?;
     let count = |a: AreaKind| series.iter().filter(|s| s.area == a).count();
     let report = AnalysisReport {
         input: path.display().to_string(),
@@ -72,6 +76,7 @@ fn draw_figures(
     series: &[Series],
     results: &[WindowResult],
     opts: &FitOptions,
+    gate: f64,
 ) -> anyhow::Result<Vec<String>> {
     let mut written = Vec::new();
     figures::draw_time_series(
@@ -90,7 +95,7 @@ fn draw_figures(
         |s| &s.sin_pitch,
     )?;
     written.push(FIG_PITCH.to_string());
-    match analysis::window_values(series, DISTRIBUTION_WINDOW) {
+    match analysis::window_values(series, DISTRIBUTION_WINDOW, gate) {
         Ok(wv) => {
             let (flat, rough) = (wv.of(AreaKind::Flat), wv.of(AreaKind::Rough));
             figures::draw_distribution(
@@ -101,7 +106,7 @@ fn draw_figures(
             )?;
             written.push(FIG_DISTRIBUTION.to_string());
         }
-        Err(e @ EstimatorError::NoWindows { .. }) => {
+        Err(e @ (EstimatorError::NoWindows { .. } | EstimatorError::AllStationary { .. })) => {
             tracing::warn!(%e, "skipping {FIG_DISTRIBUTION}")
         }
         Err(e) => return Err(e.into()),
@@ -110,9 +115,11 @@ fn draw_figures(
     for w in HEATMAP_WINDOWS {
         match results.iter().find(|r| r.window == w) {
             Some(r) => heatmaps.push(r.clone()),
-            None => match analysis::analyze_window(series, w, opts) {
+            None => match analysis::analyze_window(series, w, opts, gate) {
                 Ok(r) => heatmaps.push(r),
-                Err(e @ EstimatorError::NoWindows { .. }) => {
+                Err(
+                    e @ (EstimatorError::NoWindows { .. } | EstimatorError::AllStationary { .. }),
+                ) => {
                     tracing::warn!(%e, "confusion heatmap skipped")
                 }
                 Err(e) => return Err(anyhow::Error::from(e).context(format!("window {w}"))),

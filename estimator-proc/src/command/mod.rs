@@ -47,17 +47,30 @@ pub struct InputArgs {
 }
 
 impl InputArgs {
-    /// The validated config with `--windows` applied (sorted, deduplicated) and the seed.
-    pub fn resolve(&self) -> anyhow::Result<(common::config::EstimatorConfig, u64)> {
+    /// The validated config with `--windows` applied (sorted, deduplicated), the seed, and
+    /// the stationary gate in metres per tick ([`common::Config::min_step_travel`]).
+    pub fn resolve(&self) -> anyhow::Result<Resolved> {
         let cfg = load_config(self.config.as_deref())?;
+        let min_step_travel = cfg.min_step_travel();
         let mut est = cfg.estimator;
         if let Some(windows) = &self.windows {
             est.windows = windows.clone();
         }
         est.windows.sort_unstable();
         est.windows.dedup();
-        Ok((est, self.seed.unwrap_or(cfg.run.seed)))
+        Ok(Resolved {
+            est,
+            seed: self.seed.unwrap_or(cfg.run.seed),
+            min_step_travel,
+        })
     }
+}
+
+/// What [`InputArgs::resolve`] settles.
+pub struct Resolved {
+    pub est: common::config::EstimatorConfig,
+    pub seed: u64,
+    pub min_step_travel: f64,
 }
 
 fn load_config(path: Option<&Path>) -> anyhow::Result<common::Config> {

@@ -24,7 +24,7 @@ pub struct OnlineArgs {
 }
 
 pub fn execute(args: &OnlineArgs) -> anyhow::Result<()> {
-    let (cfg, seed) = args.input.resolve()?;
+    let super::Resolved { est: cfg, seed, .. } = args.input.resolve()?;
     let path = &args.input.traces;
     let rows = traces::read_telemetry(path)?;
     let series = analysis::split_series(&rows, cfg.warmup_ticks);

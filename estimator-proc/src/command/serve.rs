@@ -14,7 +14,8 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let control = bus.control_listener()?;
     let rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let tx = bus.sender::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None, n)?;
-    let mut est = OnlineEstimator::new(&cfg.estimator, n, cfg.run.seed)?;
+    let mut est = OnlineEstimator::new(&cfg.estimator, n, cfg.run.seed)?
+        .gate_stationary(cfg.min_step_travel());
     let mut out = vec![TerrainEstimate::default(); n];
     let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
     tracing::info!(
@@ -33,7 +34,8 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
                     // A respawned robot starts a new series: its old window says nothing.
                     est.reset_env(env)?;
                 }
-                let e = match est.observe(env, f64::from(t.sin_pitch)) {
+                let at = [f64::from(t.pos[0]), f64::from(t.pos[2])];
+                let e = match est.observe_at(env, f64::from(t.sin_pitch), Some(at)) {
                     Ok(e) => e,
                     Err(err) => {
                         tracing::warn!(env, error = %err, "observation skipped");
@@ -71,6 +73,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         scored,
         correct,
         refits = est.stats().fits,
+        stationary_windows = est.stats().stationary,
         "estimator done"
     );
     Ok(())
