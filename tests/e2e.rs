@@ -78,13 +78,14 @@ fn two_specialists_learn_side_by_side_on_their_own_terrain() {
 #[test]
 fn a_run_id_in_use_by_a_live_run_is_refused_before_anything_starts() {
     let run_id = format!("busy-{}", std::process::id());
-    // This test process holds a node on the run's bus, as a live run's process would.
-    let bus = common::ipc::Bus::connect(&run_id, "holder").expect("node");
+    // This test process holds a launcher's node on the run's bus, as a live run would. (A
+    // monitor's node, like tests/survival.rs's, does not take the id.)
+    let bus = common::ipc::Bus::connect(&run_id, "launcher").expect("node");
     let (code, output) = support::lavatube_run("configs/smoke.toml", &run_id);
     assert_ne!(code, 0, "{output}");
     assert!(
         output.contains(&format!(
-            "run id `{run_id}` is in use by a live run (holder (pid {})",
+            "run id `{run_id}` is in use by a live run (launcher (pid {})",
             std::process::id()
         )),
         "{output}"

@@ -105,6 +105,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     })
 }
 
+/// The launcher's node name on a run's bus: a live one means the run id is taken.
+pub(crate) const LAUNCHER_NODE: &str = "launcher";
+
 /// Runs `cfg` in `<run.out-dir>/<dir_name>/` to the end, its processes meeting in the shared
 /// memory of run `run_id`. Returns false when interrupted (Ctrl-C); fails when a process
 /// failed for good, or before anything starts when a live run already uses `run_id`.
@@ -116,11 +119,11 @@ pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyho
     ];
     let run_id = run_id.to_string();
     // Two runs on one id would read each other's messages and remove each other's shared
-    // memory at the end.
+    // memory at the end. Other nodes (monitors, tests watching the run) may come first.
     let live: Vec<String> = ipc::list_nodes(&run_id)
         .unwrap_or_default()
         .into_iter()
-        .filter(|n| n.alive)
+        .filter(|n| n.alive && n.name == LAUNCHER_NODE)
         .map(|n| format!("{} (pid {})", n.name, n.pid))
         .collect();
     if !live.is_empty() {
@@ -165,7 +168,7 @@ pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyho
         ),
     );
 
-    let bus = Bus::connect(&run_id, "launcher")?;
+    let bus = Bus::connect(&run_id, LAUNCHER_NODE)?;
     let control = bus.control_notifier()?;
     let tele_rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let terrain_rx = bus.receiver::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None)?;

@@ -65,7 +65,7 @@ pub fn swap_learner_command(args: SwapArgs) -> anyhow::Result<ExitCode> {
         SwapRequest::new(args.slot.index() as u32, &config, &checkpoint).map_err(UserError)?;
     let launcher_alive = ipc::list_nodes(&args.run_id)?
         .iter()
-        .any(|n| n.alive && n.name == "launcher");
+        .any(|n| n.alive && n.name == super::run::LAUNCHER_NODE);
     if !launcher_alive {
         return Err(UserError(format!(
             "run `{}` has no running launcher (see `lavatube status`)",
