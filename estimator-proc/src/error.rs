@@ -57,7 +57,7 @@ pub enum EstimatorError {
     )]
     NoWindows { window: usize, longest: usize },
     #[error(
-        "window {window}: the robots stood still in all {stationary} windows (estimator.min-speed; 0 keeps every window)"
+        "the robots stood still in all {stationary} windows of {window} ticks (estimator.min-speed; 0 keeps every window)"
     )]
     AllStationary { window: usize, stationary: usize },
     #[error("window size {window} is out of range: it must be at least 2")]

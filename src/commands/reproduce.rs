@@ -641,8 +641,13 @@ fn shape_checks(cells: &[Evaluated]) -> String {
             (false, true) => "within noise",
             (false, false) => "no",
         };
+        let reach = if faster_half.is_finite() {
+            format!("{faster:+.2} ± {faster_half:.2}")
+        } else {
+            "-".into()
+        };
         md += &format!(
-            "| {a} {} {b} on {} | {:.1} vs {:.1} | {} vs {} | {d:+.1} ± {half:.1} | {faster:+.2} ± {faster_half:.2} | {} |\n",
+            "| {a} {} {b} on {} | {:.1} vs {:.1} | {} vs {} | {d:+.1} ± {half:.1} | {reach} | {} |\n",
             if strictly { "better than" } else { "≥" },
             area.name(),
             x.success_pct(),
