@@ -313,13 +313,17 @@ struct Wake {
 }
 
 impl Wake {
-    /// Whether a send at `now` wakes the readers; records it either way.
-    fn due(&self, now: Instant) -> bool {
-        let due = self.interval.is_zero()
-            || self
-                .last
-                .get()
-                .is_none_or(|last| now.duration_since(last) >= self.interval);
+    /// Whether a send now wakes the readers; records it either way. Reads the clock only
+    /// when wake-ups are rationed.
+    fn due(&self) -> bool {
+        if self.interval.is_zero() {
+            return true;
+        }
+        let now = Instant::now();
+        let due = self
+            .last
+            .get()
+            .is_none_or(|last| now.duration_since(last) >= self.interval);
         if due {
             self.last.set(Some(now));
         }
@@ -379,7 +383,7 @@ where
         sample
             .send()
             .map_err(|e| ipc_err(format!("send on `{}`", self.name))(&e))?;
-        if self.wake.due(Instant::now()) {
+        if self.wake.due() {
             self.notify()?;
         }
         Ok(())

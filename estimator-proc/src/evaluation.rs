@@ -48,12 +48,15 @@ pub struct OnlineEval {
     pub raw: ClassifierScore,
     pub fits: u64,
     pub failed_fits: u64,
+    /// Full windows left out as stationary (the env kept its estimate).
+    pub stationary: u64,
 }
 
 /// One env's input: values, true areas, and where each segment starts.
 #[derive(Debug, Clone, Default)]
 struct Stream {
     values: Vec<f64>,
+    xz: Vec<[f64; 2]>,
     areas: Vec<AreaKind>,
     starts: Vec<usize>,
 }
@@ -62,6 +65,7 @@ impl Stream {
     fn push(&mut self, s: &Series) {
         self.starts.push(self.values.len());
         self.values.extend_from_slice(&s.sin_pitch);
+        self.xz.extend_from_slice(&s.xz);
         self.areas
             .extend(std::iter::repeat_n(s.area, s.sin_pitch.len()));
     }
@@ -110,8 +114,9 @@ fn build_streams(series: &[Series], splice: bool) -> Vec<Stream> {
 }
 
 /// Runs the online estimator with window `window` (other settings from `cfg`) over the
-/// series. A change counts as detected at the first tick from which the class stays on the
-/// new area for `hold` ticks within the segment; the delay is that tick minus the change's.
+/// series, with the runtime's stationary gate (`min_step_travel` metres per tick, 0: none).
+/// A change counts as detected at the first tick from which the class stays on the new area
+/// for `hold` ticks within the segment; the delay is that tick minus the change's.
 pub fn evaluate_online(
     series: &[Series],
     cfg: &EstimatorConfig,
@@ -119,6 +124,7 @@ pub fn evaluate_online(
     seed: u64,
     splice: bool,
     hold: usize,
+    min_step_travel: f64,
 ) -> Result<OnlineEval> {
     if series.is_empty() {
         return Err(EstimatorError::NoWindows { window, longest: 0 });
@@ -128,7 +134,7 @@ pub fn evaluate_online(
         online_window: window,
         ..cfg.clone()
     };
-    let mut est = OnlineEstimator::new(&cfg, streams.len(), seed)?;
+    let mut est = OnlineEstimator::new(&cfg, streams.len(), seed)?.gate_stationary(min_step_travel);
     // classes[stream][tick] = (filtered, raw)
     let mut classes: Vec<Vec<(Option<usize>, Option<usize>)>> = streams
         .iter()
@@ -138,7 +144,7 @@ pub fn evaluate_online(
     for t in 0..longest {
         for (i, stream) in streams.iter().enumerate() {
             if let Some(&x) = stream.values.get(t) {
-                let e = est.observe(i, x)?;
+                let e = est.observe_at(i, x, stream.xz.get(t).copied())?;
                 classes[i].push((e.class, e.raw_class));
             }
         }
@@ -157,6 +163,7 @@ pub fn evaluate_online(
         raw: score_classifier(&streams, &classes, pick_raw, hold),
         fits: stats.fits,
         failed_fits: stats.failed_fits,
+        stationary: stats.stationary,
     })
 }
 
@@ -273,8 +280,8 @@ mod tests {
             refit_every: 100,
             ..EstimatorConfig::default()
         };
-        let short = evaluate_online(&s, &cfg, 5, 1, true, 5).expect("w5");
-        let long = evaluate_online(&s, &cfg, 40, 1, true, 5).expect("w40");
+        let short = evaluate_online(&s, &cfg, 5, 1, true, 5, 0.0).expect("w5");
+        let long = evaluate_online(&s, &cfg, 40, 1, true, 5, 0.0).expect("w40");
         assert_eq!(long.filtered.delay.changes, 8);
         assert_eq!(long.filtered.delay.detected, 8, "{long:?}");
         assert!(

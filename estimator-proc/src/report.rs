@@ -171,13 +171,13 @@ impl OnlineReport {
         );
         let _ = writeln!(
             md,
-            "| window | stay prob | classified | accuracy (HMM) | accuracy (raw) | delay (HMM) | delay (raw) | fits (failed) |"
+            "| window | stay prob | classified | accuracy (HMM) | accuracy (raw) | delay (HMM) | delay (raw) | fits (failed) | stationary windows |"
         );
-        let _ = writeln!(md, "|---:|---:|---:|---:|---:|---|---|---:|");
+        let _ = writeln!(md, "|---:|---:|---:|---:|---:|---|---|---:|---:|");
         for e in &self.windows {
             let _ = writeln!(
                 md,
-                "| {} | {} | {}/{} | {:.2} % | {:.2} % | {} | {} | {} ({}) |",
+                "| {} | {} | {}/{} | {:.2} % | {:.2} % | {} | {} | {} ({}) | {} |",
                 e.window,
                 e.stay_prob,
                 e.classified,
@@ -187,7 +187,8 @@ impl OnlineReport {
                 delay_cell(&e.filtered),
                 delay_cell(&e.raw),
                 e.fits,
-                e.failed_fits
+                e.failed_fits,
+                e.stationary
             );
         }
         md

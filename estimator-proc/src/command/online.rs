@@ -24,7 +24,11 @@ pub struct OnlineArgs {
 }
 
 pub fn execute(args: &OnlineArgs) -> anyhow::Result<()> {
-    let super::Resolved { est: cfg, seed, .. } = args.input.resolve()?;
+    let super::Resolved {
+        est: cfg,
+        seed,
+        min_step_travel,
+    } = args.input.resolve()?;
     let path = &args.input.traces;
     let rows = traces::read_telemetry(path)?;
     let series = analysis::split_series(&rows, cfg.warmup_ticks);
@@ -33,7 +37,7 @@ pub fn execute(args: &OnlineArgs) -> anyhow::Result<()> {
         .windows
         .iter()
         .map(|&w| {
-            evaluation::evaluate_online(&series, &cfg, w, seed, args.splice, hold)
+            evaluation::evaluate_online(&series, &cfg, w, seed, args.splice, hold, min_step_travel)
                 .with_context(|| format!("window {w}"))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
