@@ -30,7 +30,7 @@ pub struct Transition {
     pub truncated: u8,
     /// 1 when the episode ended by reaching its target after this step.
     pub success: u8,
-    /// True area code of the env (0 flat, 1 rough).
+    /// True terrain under the robot (0 flat, 1 rough; on the mixed course, the part it is on).
     pub area: u8,
     /// Terrain class the estimator assigned at this step (255: none yet).
     pub estimated_class: u8,

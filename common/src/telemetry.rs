@@ -10,7 +10,7 @@ pub struct TelemetryRow {
     pub env: u32,
     /// Decision tick of this env since the run started (0-based).
     pub tick: u64,
-    /// True area label: `flat` or `rough`.
+    /// True terrain under the robot: `flat` or `rough` (on the mixed course, the part it is on).
     pub area: crate::AreaKind,
     /// Episode counter of this env.
     pub episode: u64,

@@ -127,7 +127,8 @@ pub const EVENT_FAULT: u8 = 8;
 #[type_name("lavatube.EnvTick.v1")]
 pub struct EnvTick {
     pub env: u32,
-    /// True area (0 flat, 1 rough).
+    /// True terrain under the robot (0 flat, 1 rough): the env's area, or on the mixed
+    /// course the part it is on.
     pub area: u8,
     /// Bits `EVENT_*`.
     pub events: u8,

@@ -41,7 +41,8 @@ fn new_run_id() -> String {
 struct Progress {
     tick: TickHeader,
     terrain: TerrainHeader,
-    /// Both areas have envs: only then does scoring a two-class terrain estimate mean anything.
+    /// Envs see flat and rough ground (both areas, or the mixed course): only then does
+    /// scoring a two-class terrain estimate mean anything.
     both_areas: bool,
 }
 
@@ -247,7 +248,7 @@ pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyho
 
     let started = Instant::now();
     let mut progress = Progress {
-        both_areas: cfg.sim.flat_envs > 0 && cfg.sim.rough_envs > 0,
+        both_areas: (cfg.sim.flat_envs > 0 && cfg.sim.rough_envs > 0) || cfg.sim.mixed_envs > 0,
         ..Progress::default()
     };
     let mut interrupted = false;
