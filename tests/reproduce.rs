@@ -57,6 +57,18 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         checks, 6,
         "two specialist claims, switching vs the best single model in three areas, switching vs general on the mixed course:\n{report}"
     );
+    assert!(
+        report.contains("`roughness-scale` 0.8 for stages a-d, 1.2 for the fine-tuning (e) and 1 for this evaluation (f)"),
+        "{report}"
+    );
+    for (stage_cfg, ground) in [
+        ("e-specialists/config.toml", "roughness-scale = 1.2"),
+        ("f-eval/general-rough-0.toml", "roughness-scale = 1.0"),
+        ("c-collect/traces.toml", "roughness-scale = 0.8"),
+    ] {
+        let text = std::fs::read_to_string(out.join(stage_cfg)).expect(stage_cfg);
+        assert!(text.contains(ground), "{stage_cfg}: {text}");
+    }
     let table3 = report
         .lines()
         .filter(|l| {

@@ -532,6 +532,14 @@ pub struct TaskConfig {
     pub max_target_draws: usize,
 }
 
+impl TaskConfig {
+    /// The longest an episode can last, decision steps: SPEC S3's MES at the farthest target
+    /// the annulus allows (a target clamped into the area only comes closer).
+    pub fn longest_episode_ticks(&self) -> u64 {
+        (self.mes_base + self.mes_per_metre * self.target_annulus[1] * self.delta).floor() as u64
+    }
+}
+
 impl Default for TaskConfig {
     fn default() -> Self {
         Self {
@@ -798,6 +806,13 @@ pub struct ReproduceConfig {
     pub eval_episodes: u64,
     /// (f) Envs per evaluation cell. 1 ..= 1024. Default 8.
     pub eval_envs: usize,
+    /// (e) `sim.terrain.roughness-scale` of the fine-tuning. [0, 2]. Default unset: the
+    /// `[sim]` one, as in the paper. Rougher ground than the general model saw gives the
+    /// rough-terrain model something to specialise in.
+    pub finetune_roughness_scale: Option<f64>,
+    /// (f) `sim.terrain.roughness-scale` of the evaluation, every model and area alike.
+    /// [0, 2]. Default unset: the `[sim]` one (SPEC S1's 0.8).
+    pub eval_roughness_scale: Option<f64>,
 }
 
 impl Default for ReproduceConfig {
@@ -811,6 +826,8 @@ impl Default for ReproduceConfig {
             finetune_steps: 500_000,
             eval_episodes: 200,
             eval_envs: 8,
+            finetune_roughness_scale: None,
+            eval_roughness_scale: None,
         }
     }
 }
@@ -1092,6 +1109,17 @@ impl Config {
         count_in("reproduce.flat-envs", p.flat_envs, 1, 1024)?;
         count_in("reproduce.envs-per-area", p.envs_per_area, 1, 512)?;
         count_in("reproduce.eval-envs", p.eval_envs, 1, 1024)?;
+        for (field, v) in [
+            (
+                "reproduce.finetune-roughness-scale",
+                p.finetune_roughness_scale,
+            ),
+            ("reproduce.eval-roughness-scale", p.eval_roughness_scale),
+        ] {
+            if let Some(v) = v {
+                in_range(field, v, 0.0, 2.0)?;
+            }
+        }
         for (field, v, hi) in [
             ("reproduce.flat-steps", p.flat_steps, 10_000_000_000),
             ("reproduce.general-steps", p.general_steps, 10_000_000_000),
@@ -1195,6 +1223,25 @@ mod tests {
         );
         let e = parse("[sim]\nflat-envs = 0\n").expect_err("no envs");
         assert!(e.to_string().contains("sim.flat-envs"));
+        let e = parse("[reproduce]\neval-roughness-scale = 2.5\n").expect_err("range");
+        assert_eq!(
+            e.to_string(),
+            "config field `reproduce.eval-roughness-scale` = 2.5: must be in [0, 2]"
+        );
+    }
+
+    #[test]
+    fn the_longest_episode_is_the_farthest_targets_limit() {
+        // SPEC S3: MES = 300 + 200 · ID, ID at most 5Δ = 0.5 m.
+        assert_eq!(TaskConfig::default().longest_episode_ticks(), 400);
+    }
+
+    #[test]
+    fn stage_roughness_is_optional_and_round_trips() {
+        let c = parse("[reproduce]\nfinetune-roughness-scale = 1.2\n").expect("valid");
+        assert_eq!(c.reproduce.finetune_roughness_scale, Some(1.2));
+        assert_eq!(c.reproduce.eval_roughness_scale, None);
+        assert_eq!(parse(&c.to_toml()).expect("round trip"), c);
     }
 
     #[test]
