@@ -77,6 +77,11 @@ fn quick_bench_measures_every_stage_and_cleans_up() {
                     .iter()
                     .find(|r| r["stage"] == stage && r["envs"] == envs && r["threads"] == threads)
                     .unwrap_or_else(|| panic!("{cell} missing"));
+                assert_eq!(
+                    row["decision_steps_per_s_repeats"],
+                    serde_json::json!([row["decision_steps_per_s"]]),
+                    "{cell}: --quick measures once"
+                );
                 for key in ["decision_steps_per_s", "physics_steps_per_s", "wall_s"] {
                     positive(&row[key], &format!("{cell}: {key}"));
                 }
@@ -160,6 +165,14 @@ fn quick_bench_measures_every_stage_and_cleans_up() {
         Some(6)
     );
     assert_eq!(acceptance["learning"].as_array().map(Vec::len), Some(12));
+    for check in acceptance["publish_over_policy"]
+        .as_array()
+        .expect("checks")
+    {
+        let ratios = check["ratios"].as_array().expect("ratios");
+        assert_eq!(ratios.len(), 1);
+        assert_eq!(check["ratio"], ratios[0], "one repeat: its own ratio");
+    }
 
     // Every run of the bench removed its shared memory.
     let bench_id = report["bench_id"].as_str().expect("bench id");
@@ -180,7 +193,7 @@ fn bad_input_is_one_line_before_anything_starts() {
         ),
         (
             "[bench]\nenvs = [8]\nthread = [1]\n",
-            "lavatube: {path}:3:1: unknown field `thread`, expected one of `runtime`, `envs`, `threads`, `env-steps`, `min-chunks`, `transport-messages`, `timeout-s`, `out-dir`\n",
+            "lavatube: {path}:3:1: unknown field `thread`, expected one of `runtime`, `envs`, `threads`, `env-steps`, `min-chunks`, `repeats`, `transport-messages`, `timeout-s`, `out-dir`\n",
         ),
     ] {
         let path = dir.path().join("bench.toml");

@@ -34,6 +34,10 @@ pub struct BenchConfig {
     /// Rollout chunks per measurement at least, so the learner stages average over several
     /// updates and the rate is taken over whole chunk cycles. 2 ..= 10^6. Default 4.
     pub min_chunks: u64,
+    /// Times each cell's six stages are measured, in rotation (a–f, a–f, …), so a slow
+    /// spell of the machine hits every stage alike; the tables give each stage's median
+    /// run. 1 ..= 20. Default 3 (`--quick`: 1). Identical runs here differ by up to 15 %.
+    pub repeats: usize,
     /// Messages per payload, transport and phase (latency, throughput) in the shared-memory
     /// versus Unix-socket comparison. 100 ..= 10^7. Default 5000.
     pub transport_messages: usize,
@@ -53,6 +57,7 @@ impl Default for BenchConfig {
             threads: vec![1, 2],
             env_steps: 16_384,
             min_chunks: 4,
+            repeats: 3,
             transport_messages: 5000,
             timeout_s: 900,
             out_dir: PathBuf::from("runs/bench"),
@@ -132,12 +137,20 @@ pub struct Measurement {
     pub stage: Stage,
     pub envs: usize,
     pub threads: usize,
+    /// Which of the cell's `bench.repeats` rounds, from 0.
+    pub repeat: usize,
 }
 
 impl Measurement {
-    /// `d-n8-t2`: names its directory (and, prefixed by the bench id, its run id).
+    /// `d-n8-t2-r0`: names its directory (and, prefixed by the bench id, its run id).
     pub fn label(&self) -> String {
-        format!("{}-n{}-t{}", self.stage.letter(), self.envs, self.threads)
+        format!(
+            "{}-n{}-t{}-r{}",
+            self.stage.letter(),
+            self.envs,
+            self.threads,
+            self.repeat
+        )
     }
 }
 
@@ -200,6 +213,9 @@ impl BenchConfig {
                 "must be in [2, 1000000]",
             ));
         }
+        if !(1..=20).contains(&self.repeats) {
+            return Err(invalid("bench.repeats", self.repeats, "must be in [1, 20]"));
+        }
         if !(100..=10_000_000).contains(&self.transport_messages) {
             return Err(invalid(
                 "bench.transport-messages",
@@ -261,6 +277,7 @@ impl Plan {
         if quick {
             plan.bench.env_steps = plan.bench.env_steps.min(QUICK_ENV_STEPS);
             plan.bench.min_chunks = QUICK_MIN_CHUNKS;
+            plan.bench.repeats = 1;
             plan.bench.transport_messages = QUICK_TRANSPORT_MESSAGES;
             let ppo = &mut plan.runtime.ppo;
             ppo.rollout_transitions = ppo.rollout_transitions.min(QUICK_ROLLOUT_TRANSITIONS);
@@ -274,18 +291,22 @@ impl Plan {
         Ok(plan)
     }
 
-    /// Every measurement, in the order they run: for each env count and thread count, the
-    /// stages a–f back to back, so the stages of one cell see the same machine conditions.
+    /// Every measurement, in the order they run: for each env count and thread count,
+    /// `repeats` rounds of the stages a–f back to back, so the stages of one cell see the same
+    /// machine conditions and stage c runs right after the stage b it is compared with.
     pub fn measurements(&self) -> Vec<Measurement> {
         let mut out = Vec::new();
         for &envs in &self.bench.envs {
             for &threads in &self.bench.threads {
-                for stage in Stage::ALL {
-                    out.push(Measurement {
-                        stage,
-                        envs,
-                        threads,
-                    });
+                for repeat in 0..self.bench.repeats {
+                    for stage in Stage::ALL {
+                        out.push(Measurement {
+                            stage,
+                            envs,
+                            threads,
+                            repeat,
+                        });
+                    }
                 }
             }
         }
@@ -352,13 +373,22 @@ mod tests {
     #[test]
     fn defaults_measure_the_issue_matrix() {
         let plan = Plan::load(None, false).expect("defaults");
-        assert_eq!(plan.measurements().len(), 3 * 2 * 6);
+        let all = plan.measurements();
+        assert_eq!(
+            all.len(),
+            3 * 2 * 3 * 6,
+            "envs × threads × repeats × stages"
+        );
+        // A cell's rounds follow each other, each round every stage in order.
+        let first: Vec<String> = all[5..8].iter().map(Measurement::label).collect();
+        assert_eq!(first, ["f-n1-t1-r0", "a-n1-t1-r1", "b-n1-t1-r1"]);
         // 2048 transitions per chunk (2048 ticks at 1 env, 32 at 64): 16384 env steps are 8.
         assert_eq!((plan.ticks(1), plan.ticks(64)), (8 * 2048, 8 * 32));
         let m = Measurement {
             stage: Stage::Publish,
             envs: 8,
             threads: 2,
+            repeat: 1,
         };
         let cfg = plan.config_for(&m, Path::new("x"));
         assert_eq!(
@@ -371,7 +401,7 @@ mod tests {
             "no learner: a sync sim would wait"
         );
         assert_eq!(cfg.run.total_steps, plan.ticks(8) * 8);
-        assert_eq!(m.label(), "c-n8-t2");
+        assert_eq!(m.label(), "c-n8-t2-r1");
     }
 
     #[test]
@@ -382,6 +412,7 @@ mod tests {
             QUICK_ROLLOUT_TRANSITIONS
         );
         assert!(plan.ticks(1) <= QUICK_ENV_STEPS && plan.ticks(64) <= 8);
+        assert_eq!(plan.bench.repeats, 1);
     }
 
     #[test]

@@ -59,6 +59,7 @@ pub struct Settings {
     pub threads: Vec<usize>,
     pub env_steps_per_measurement: u64,
     pub min_chunks: u64,
+    pub repeats: usize,
     pub seed: u64,
     pub ground: &'static str,
     pub substeps: usize,
@@ -80,6 +81,7 @@ impl Settings {
             threads: b.threads.clone(),
             env_steps_per_measurement: b.env_steps,
             min_chunks: b.min_chunks,
+            repeats: b.repeats,
             seed: r.run.seed,
             ground: "rough",
             substeps: r.sim.substeps,
@@ -94,13 +96,67 @@ impl Settings {
     }
 }
 
+/// A stage in one cell over its repeats: the run with the median rate, and every run's rate.
+#[derive(Debug, Clone, Serialize)]
+pub struct StageCell {
+    #[serde(flatten)]
+    pub median: Row,
+    /// Every repeat's decision steps/s, in the order measured.
+    pub decision_steps_per_s_repeats: Vec<f64>,
+}
+
+impl StageCell {
+    /// (max − min) / median of the repeats' rates, percent: how much the machine wandered.
+    fn spread_pct(&self) -> f64 {
+        let r = &self.decision_steps_per_s_repeats;
+        let (lo, hi) = r.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        });
+        100.0 * (hi - lo) / self.median.decision_steps_per_s
+    }
+}
+
+/// The lower median: the middle value for an odd count, the lower of the two middle ones
+/// for an even count (a pass on it is never a pass on luck alone).
+fn lower_median(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    xs[(xs.len() - 1) / 2]
+}
+
+fn same_cell(a: &Row, b: &Row) -> bool {
+    (a.stage, a.envs, a.threads) == (b.stage, b.envs, b.threads)
+}
+
+/// Groups the runs by stage and cell, in the order first measured, keeping each group's
+/// median run.
+fn stage_cells(runs: &[Row]) -> Vec<StageCell> {
+    let mut out: Vec<StageCell> = Vec::new();
+    for r in runs {
+        if out.iter().any(|c| same_cell(&c.median, r)) {
+            continue;
+        }
+        let mut group: Vec<&Row> = runs.iter().filter(|x| same_cell(x, r)).collect();
+        let rates = group.iter().map(|x| x.decision_steps_per_s).collect();
+        group.sort_by(|x, y| x.decision_steps_per_s.total_cmp(&y.decision_steps_per_s));
+        out.push(StageCell {
+            median: group[(group.len() - 1) / 2].clone(),
+            decision_steps_per_s_repeats: rates,
+        });
+    }
+    out
+}
+
 /// Stage c against stage b in one cell.
 #[derive(Debug, Clone, Serialize)]
 pub struct RatioCheck {
     pub envs: usize,
     pub threads: usize,
+    /// The median runs' rates.
     pub stage_b_decision_steps_per_s: f64,
     pub stage_c_decision_steps_per_s: f64,
+    /// Per repeat, stage c over the stage b run right before it.
+    pub ratios: Vec<f64>,
+    /// Their lower median: what `pass` is decided on.
     pub ratio: f64,
     pub pass: bool,
 }
@@ -127,24 +183,36 @@ pub struct Acceptance {
 }
 
 impl Acceptance {
-    fn of(stages: &[Row]) -> Self {
+    /// The checks on the median runs of `stages`, and for stage c on its pairs in `runs`.
+    fn of(stages: &[StageCell], runs: &[Row]) -> Self {
         let find = |stage: Stage, envs, threads| {
             stages
                 .iter()
+                .map(|c| &c.median)
                 .find(|r| r.stage == stage.letter() && r.envs == envs && r.threads == threads)
         };
         let mut publish_over_policy = Vec::new();
         let mut learning = Vec::new();
-        for r in stages {
+        for r in stages.iter().map(|c| &c.median) {
             if r.stage == Stage::Publish.letter()
                 && let Some(b) = find(Stage::Policy, r.envs, r.threads)
             {
-                let ratio = r.decision_steps_per_s / b.decision_steps_per_s;
+                let ratios: Vec<f64> = runs
+                    .iter()
+                    .filter(|c| same_cell(c, r))
+                    .filter_map(|c| {
+                        runs.iter()
+                            .find(|x| same_cell(x, b) && x.repeat == c.repeat)
+                            .map(|b| c.decision_steps_per_s / b.decision_steps_per_s)
+                    })
+                    .collect();
+                let ratio = lower_median(ratios.clone());
                 publish_over_policy.push(RatioCheck {
                     envs: r.envs,
                     threads: r.threads,
                     stage_b_decision_steps_per_s: b.decision_steps_per_s,
                     stage_c_decision_steps_per_s: r.decision_steps_per_s,
+                    ratios,
                     ratio,
                     pass: ratio >= PUBLISH_OVER_POLICY_TARGET,
                 });
@@ -184,8 +252,9 @@ pub struct Report {
     pub machine: Machine,
     pub settings: Settings,
     pub units: BTreeMap<&'static str, &'static str>,
-    /// One entry per stage × envs × threads, in the order measured.
-    pub stages: Vec<Row>,
+    /// One entry per stage × envs × threads, in the order measured: its median run over
+    /// `settings.repeats`, with every repeat's rate.
+    pub stages: Vec<StageCell>,
     /// One entry per payload.
     pub transport: Vec<TransportRow>,
     pub acceptance: Acceptance,
@@ -230,9 +299,10 @@ impl Report {
         bench_id: String,
         machine: Machine,
         policy_params: usize,
-        stages: Vec<Row>,
+        runs: Vec<Row>,
         transport: Vec<TransportRow>,
     ) -> Self {
+        let stages = stage_cells(&runs);
         Self {
             schema: "lavatube.bench.v1",
             bench_id,
@@ -243,7 +313,7 @@ impl Report {
             machine,
             settings: Settings::of(plan, policy_params),
             units: units(),
-            acceptance: Acceptance::of(&stages),
+            acceptance: Acceptance::of(&stages, &runs),
             stages,
             transport,
         }
@@ -273,11 +343,12 @@ impl Report {
         );
         let _ = writeln!(
             t,
-            "\n{:<18} {:>4} {:>3} {:>11} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
+            "\n{:<18} {:>4} {:>3} {:>11} {:>7} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
             "stage",
             "N",
             "thr",
             "decision/s",
+            "spread",
             "physics/s",
             "learn smp/s",
             "lag",
@@ -285,18 +356,20 @@ impl Report {
             "p99 µs",
             "missed"
         );
-        for r in &self.stages {
+        for c in &self.stages {
+            let r = &c.median;
             let missed = match (r.telemetry_ticks_missed, r.rollout_chunks_missed) {
                 (Some(a), Some(b)) => format!("{a}/{b}"),
                 _ => "-".into(),
             };
             let _ = writeln!(
                 t,
-                "{:<18} {:>4} {:>3} {:>11} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
+                "{:<18} {:>4} {:>3} {:>11} {:>7} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
                 format!("{} {}", r.stage, r.stage_name),
                 r.envs,
                 r.threads,
                 thousands(r.decision_steps_per_s),
+                format!("{:.0}%", c.spread_pct()),
                 thousands(r.physics_steps_per_s),
                 r.learner_samples_per_s.map_or("-".into(), thousands),
                 r.policy_lag_versions
@@ -310,7 +383,8 @@ impl Report {
         }
         let _ = writeln!(
             t,
-            "(missed: telemetry ticks / rollout chunks the reader did not get)"
+            "(the median of {} run(s) per row; spread: (max − min) / median of their decision/s; missed: telemetry ticks / rollout chunks the reader did not get)",
+            self.settings.repeats
         );
         let procs = ["sim", "reader", "learner", "estimator"];
         let _ = write!(t, "\n{:<18} {:>4} {:>3}", "CPU s / peak MiB", "N", "thr");
@@ -318,7 +392,7 @@ impl Report {
             let _ = write!(t, " {p:>16}");
         }
         let _ = writeln!(t);
-        for r in &self.stages {
+        for r in self.stages.iter().map(|c| &c.median) {
             let _ = write!(
                 t,
                 "{:<18} {:>4} {:>3}",
@@ -388,7 +462,7 @@ impl Report {
             let passed = a.publish_over_policy.iter().filter(|c| c.pass).count();
             let _ = writeln!(
                 t,
-                "stage c ≥ {:.2} × stage b: {passed} of {} cells pass; lowest {:.3} at N={}, {} thread(s)",
+                "stage c ≥ {:.2} × stage b (median over repeats of c / the b run before it): {passed} of {} cells pass; lowest {:.3} at N={}, {} thread(s)",
                 a.publish_over_policy_target,
                 a.publish_over_policy.len(),
                 worst.ratio,
@@ -442,6 +516,62 @@ fn thousands(x: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn run(stage: Stage, repeat: usize, rate: f64) -> Row {
+        Row {
+            stage: stage.letter(),
+            stage_name: stage.name(),
+            envs: 8,
+            threads: 2,
+            repeat,
+            effective_threads: 2,
+            mode: None,
+            ticks: 100,
+            env_steps: 800,
+            wall_s: 1.0,
+            decision_steps_per_s: rate,
+            physics_steps_per_s: 4.0 * rate,
+            episodes: 3,
+            learner_samples_per_s: None,
+            learner_updates: None,
+            policy_lag_versions: None,
+            transport_latency_p50_us: None,
+            transport_latency_p99_us: None,
+            telemetry_ticks_received: None,
+            telemetry_ticks_missed: None,
+            rollout_chunks_received: None,
+            rollout_chunks_missed: None,
+            processes: BTreeMap::new(),
+        }
+    }
+
+    #[test]
+    fn each_stage_keeps_its_median_run_and_c_is_paired_with_the_b_before_it() {
+        // Round 1 ran on a slow machine: b and c both lost 30 %.
+        let runs = vec![
+            run(Stage::Policy, 0, 5000.0),
+            run(Stage::Publish, 0, 4900.0),
+            run(Stage::Policy, 1, 3500.0),
+            run(Stage::Publish, 1, 3400.0),
+            run(Stage::Policy, 2, 4600.0),
+            run(Stage::Publish, 2, 4200.0),
+        ];
+        let cells = stage_cells(&runs);
+        assert_eq!(cells.len(), 2);
+        assert_eq!(cells[0].median.repeat, 2, "b's median run is 4600");
+        assert_eq!(
+            cells[1].decision_steps_per_s_repeats,
+            [4900.0, 3400.0, 4200.0]
+        );
+        assert!((cells[1].spread_pct() - 100.0 * 1500.0 / 4200.0).abs() < 1e-9);
+        let a = Acceptance::of(&cells, &runs);
+        let c = &a.publish_over_policy[0];
+        // Pairs: 0.98, 0.971, 0.913; medians of the unpaired rates would give 4200/4600 = 0.913.
+        assert_eq!(c.ratios.len(), 3);
+        assert!((c.ratio - 3400.0 / 3500.0).abs() < 1e-12, "{}", c.ratio);
+        assert!(c.pass);
+        assert_eq!(lower_median(vec![4.0, 1.0, 3.0, 2.0]), 2.0);
+    }
 
     #[test]
     fn thousands_groups_digits() {

@@ -112,6 +112,8 @@ pub struct Row {
     pub stage_name: &'static str,
     pub envs: usize,
     pub threads: usize,
+    /// The round of the cell it was measured in (`bench.repeats`), from 0.
+    pub repeat: usize,
     /// Threads actually stepping: the sim never uses more threads than envs.
     pub effective_threads: usize,
     pub mode: Option<LearnMode>,
@@ -274,6 +276,7 @@ pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
         stage_name: m.stage.name(),
         envs: m.envs,
         threads: m.threads,
+        repeat: m.repeat,
         effective_threads: m.threads.min(m.envs),
         mode: ctx.plan.mode(m.stage),
         ticks,
