@@ -10,7 +10,7 @@
 use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
-use common::config::{Config, PpoConfig};
+use common::config::{Config, PolicySlot, PpoConfig};
 use common::policy::PolicyLayout;
 use common::{ACT_DIM, OBS_DIM, Rng, Transition};
 use serde::{Deserialize, Serialize};
@@ -82,10 +82,10 @@ pub struct Learner {
     pub(crate) obs_norm: RunningMeanStd,
     pub(crate) rng: Rng,
     pub(crate) counters: Counters,
-    /// SPEC S8: train only on transitions the estimator assigned to this class (a terrain
-    /// specialist); `None`: on all. Set by the caller, not checkpointed: it is the role the
-    /// learner plays in a run, not learned state.
-    train_class: Option<u8>,
+    /// SPEC S8: a terrain specialist trains only on transitions it acted itself where the
+    /// estimator said its terrain; `None` (the general model): on all. Set by the caller, not
+    /// checkpointed: it is the role the learner plays in a run, not learned state.
+    specialist: Option<PolicySlot>,
     train_device: Device,
     eval_device: Device,
 }
@@ -188,7 +188,7 @@ impl Learner {
             obs_norm: state.obs_norm,
             rng: state.rng,
             counters: state.counters,
-            train_class: None,
+            specialist: None,
             train_device: eval_device.clone().autodiff(),
             eval_device,
         })
@@ -202,10 +202,13 @@ impl Learner {
         self.counters
     }
 
-    /// Makes this learner a terrain specialist (SPEC S8): it trains only on transitions whose
-    /// estimator class is `class`; `None` trains on all.
-    pub fn train_only_on(&mut self, class: Option<u8>) {
-        self.train_class = class;
+    /// Makes this learner the one of `slot` (SPEC S8). A specialist trains only on the
+    /// transitions whose estimator class is its terrain's and that its own policy acted: when
+    /// switching holds the other specialist for a dwell time after the estimate changed,
+    /// those transitions carry the other policy's log-probabilities, and PPO's ratio on them
+    /// would be against the wrong behaviour policy. The general model trains on all.
+    pub fn play(&mut self, slot: PolicySlot) {
+        self.specialist = slot.class().map(|_| slot);
     }
 
     pub fn policy_version(&self) -> u32 {
@@ -373,17 +376,20 @@ impl Learner {
             .filter(|&i| lag(&transitions[i]) <= self.ppo.max_policy_lag)
             .collect();
         let stale = batch_size - fresh.len();
-        // SPEC S8: a specialist's other-terrain transitions likewise only shape advantages.
+        // SPEC S8: a specialist's other-terrain and other-policy transitions likewise only
+        // shape advantages.
         let mut b_inds: Vec<usize> = fresh
             .into_iter()
             .filter(|&i| {
-                self.train_class
-                    .is_none_or(|c| transitions[i].estimated_class == c)
+                let t = &transitions[i];
+                self.specialist.is_none_or(|s| {
+                    usize::from(t.slot) == s.index() && s.class() == Some(t.estimated_class)
+                })
             })
             .collect();
         if b_inds.is_empty() {
             return Err(LearnerError::rollout(format!(
-                "none of {batch_size} transitions to train on: {stale} more than {} policy versions old, the rest of other terrain classes",
+                "none of {batch_size} transitions to train on: {stale} more than {} policy versions old, the rest of other terrain classes or acted by another policy",
                 self.ppo.max_policy_lag
             )));
         }
@@ -897,27 +903,35 @@ pub(crate) mod tests {
         assert_eq!(learner.counters(), Counters::default());
     }
 
-    /// SPEC S8: a specialist trains only on its terrain class's transitions; a chunk with
-    /// none of them changes nothing.
+    /// SPEC S8: a specialist trains only on its terrain class's transitions that it acted;
+    /// a chunk with none of them changes nothing.
     #[test]
     fn a_specialist_trains_only_on_its_terrain_class() {
         let cfg = small_config(64, 10);
         let mut flat = learner(&cfg, 10);
-        flat.train_only_on(Some(0));
+        flat.play(PolicySlot::Flat);
         let mut rollout = OwnedRollout::acted_by(&flat, 16, 4, 11);
-        rollout
-            .transitions
-            .iter_mut()
-            .for_each(|t| t.estimated_class = 1);
+        rollout.transitions.iter_mut().for_each(|t| {
+            t.estimated_class = 1;
+            t.slot = PolicySlot::Flat.index() as u8;
+        });
         let before = flat.policy_weights();
         let e = flat
             .update(&rollout.view())
             .expect_err("no flat transitions");
         assert!(e.to_string().contains("other terrain classes"), "{e}");
         assert_eq!(flat.policy_weights(), before, "left unchanged");
+        // Flat ground by the estimate, but acted by the rough-terrain model (switching's dwell).
+        rollout.transitions[..16].iter_mut().for_each(|t| {
+            t.estimated_class = 0;
+            t.slot = PolicySlot::Rough.index() as u8;
+        });
+        flat.update(&rollout.view())
+            .expect_err("no flat transitions of its own");
+        assert_eq!(flat.policy_weights(), before, "left unchanged");
         rollout.transitions[..16]
             .iter_mut()
-            .for_each(|t| t.estimated_class = 0);
+            .for_each(|t| t.slot = PolicySlot::Flat.index() as u8);
         flat.update(&rollout.view()).expect("16 flat transitions");
         assert_ne!(flat.policy_weights(), before);
     }

@@ -239,7 +239,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     tracing::info!("learner {from}");
     let mut log = MetricsLog::open(&args.out)?;
     let mut figure = CurvesFigure::new(&args.out);
-    learner.train_only_on(args.slot.class());
+    learner.play(args.slot);
     let bus = Bus::connect(&args.join.run_id, args.slot.learner_name())?;
     let control = bus.control_listener()?;
     let rollout_rx = bus.receiver::<Transition, RolloutHeader>(&ipc::ROLLOUT, None)?;
