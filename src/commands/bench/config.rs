@@ -29,7 +29,7 @@ pub struct BenchConfig {
     /// Sim thread counts to measure. Each 1 ..= 64, no repeats. Default [1, 2].
     pub threads: Vec<usize>,
     /// Environment steps (decision steps summed over envs) per measurement, rounded up to
-    /// whole rollout chunks. 1 ..= 10^9. Default 16384.
+    /// whole rollout chunks. 1 ..= 10^9. Default 32768.
     pub env_steps: u64,
     /// Rollout chunks per measurement at least, so the learner stages average over several
     /// updates and the rate is taken over whole chunk cycles. 2 ..= 10^6. Default 4.
@@ -55,7 +55,7 @@ impl Default for BenchConfig {
             runtime: None,
             envs: vec![1, 8, 64],
             threads: vec![1, 2],
-            env_steps: 16_384,
+            env_steps: 32_768,
             min_chunks: 4,
             repeats: 3,
             transport_messages: 5000,
@@ -382,8 +382,8 @@ mod tests {
         // A cell's rounds follow each other, each round every stage in order.
         let first: Vec<String> = all[5..8].iter().map(Measurement::label).collect();
         assert_eq!(first, ["f-n1-t1-r0", "a-n1-t1-r1", "b-n1-t1-r1"]);
-        // 2048 transitions per chunk (2048 ticks at 1 env, 32 at 64): 16384 env steps are 8.
-        assert_eq!((plan.ticks(1), plan.ticks(64)), (8 * 2048, 8 * 32));
+        // 2048 transitions per chunk (2048 ticks at 1 env, 32 at 64): 32768 env steps are 16.
+        assert_eq!((plan.ticks(1), plan.ticks(64)), (16 * 2048, 16 * 32));
         let m = Measurement {
             stage: Stage::Publish,
             envs: 8,
