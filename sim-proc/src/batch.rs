@@ -5,6 +5,7 @@ use crate::env::{Env, SharedTerrain, StepInfo};
 use crate::pool::Pool;
 use common::config::SimConfig;
 use common::{ACT_DIM, OBS_DIM};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// All envs of a run.
@@ -37,29 +38,29 @@ impl Batch {
     }
 
     /// Steps every env with its action, writing each env's step info and next observation.
-    /// The envs are cut into one contiguous run per thread.
+    /// The threads take the envs one at a time, in order, so a thread the scheduler holds
+    /// back (a reader or the learner on the same core) delays one env, not its share of the
+    /// batch.
     pub fn step(
         &mut self,
         actions: &[[f32; ACT_DIM]],
         infos: &mut [StepInfo],
         obs: &mut [[f32; OBS_DIM]],
     ) {
-        let chunk = self.envs.len().div_ceil(self.pool.parts()).max(1);
-        // Each part is taken by exactly one thread; the mutex only proves that to the compiler.
-        let parts: Vec<Mutex<Option<_>>> = self
+        // Each env is taken by exactly one thread; the mutex only proves that to the compiler.
+        let work: Vec<Mutex<Option<_>>> = self
             .envs
-            .chunks_mut(chunk)
-            .zip(actions.chunks(chunk))
-            .zip(infos.chunks_mut(chunk))
-            .zip(obs.chunks_mut(chunk))
-            .map(|part| Mutex::new(Some(part)))
+            .iter_mut()
+            .zip(actions)
+            .zip(infos)
+            .zip(obs)
+            .map(|one| Mutex::new(Some(one)))
             .collect();
-        self.pool.run(&|k| {
-            let part = parts
-                .get(k)
-                .and_then(|p| p.lock().unwrap_or_else(PoisonError::into_inner).take());
-            if let Some((((envs, acts), infos), obs)) = part {
-                for (((e, a), i), o) in envs.iter_mut().zip(acts).zip(infos).zip(obs) {
+        let next = AtomicUsize::new(0);
+        self.pool.run(&|_| {
+            while let Some(one) = work.get(next.fetch_add(1, Ordering::Relaxed)) {
+                let taken = one.lock().unwrap_or_else(PoisonError::into_inner).take();
+                if let Some((((e, a), i), o)) = taken {
                     *i = e.step(*a);
                     *o = e.observe();
                 }
