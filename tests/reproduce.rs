@@ -69,6 +69,12 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         let text = std::fs::read_to_string(out.join(stage_cfg)).expect(stage_cfg);
         assert!(text.contains(ground), "{stage_cfg}: {text}");
     }
+    // Switching classifies with stage d's mixture, never refitted on one area's windows.
+    let switch = std::fs::read_to_string(out.join("f-eval/switch-rough-0/config.toml"))
+        .expect("switching config");
+    for line in ["d-analysis/results.json\"", "refit-every = 0"] {
+        assert!(switch.contains(line), "{line}: {switch}");
+    }
     let table3 = report
         .lines()
         .filter(|l| {

@@ -667,7 +667,8 @@ pub struct EstimatorConfig {
     pub tol: f64,
     /// Variance floor of each component. (0, 1]. Default 1e-10.
     pub var_floor: f64,
-    /// Online: refit the mixture every this many ticks. 1 ..= 10^6. Default 500.
+    /// Online: refit the mixture every this many ticks; 0 never refits (the first fit, or
+    /// `model`, classifies throughout). 0 ..= 10^6. Default 500.
     pub refit_every: usize,
     /// Online: most recent window-std values kept for refitting. 10 ..= 10^7. Default 20000.
     pub pool_size: usize,
@@ -680,6 +681,68 @@ pub struct EstimatorConfig {
     /// m/s, [0, 10]; 0 counts every window, as the paper did. Default 0.02 (interpretation:
     /// a quarter of the robot's usual 0.08 m/s, so a window counts once most of it is driven).
     pub min_speed: f64,
+    /// Online: a mixture fitted offline to classify with from the first full window (SPEC
+    /// S7): a `results.json` of `estimator-proc analyze`, whose fit for `online-window` is
+    /// taken; refits warm-start from it. Without one the first online fit defines the
+    /// classes, so it needs every terrain in its pool: a run on one terrain would split it
+    /// into two. Relative to the config file. Default none.
+    pub model: Option<PathBuf>,
+}
+
+/// A terrain mixture fitted offline, as [`EstimatorConfig::model`] holds it: components by
+/// ascending mean (0 = flat).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct OfflineMixture {
+    pub window: usize,
+    pub weights: Vec<f64>,
+    pub means: Vec<f64>,
+    pub stds: Vec<f64>,
+}
+
+impl EstimatorConfig {
+    /// The fit of [`model`](Self::model) for `online-window`; `None` without a model.
+    pub fn offline_mixture(&self) -> Result<Option<OfflineMixture>, ConfigError> {
+        #[derive(Deserialize)]
+        struct Analysis {
+            windows: Vec<OfflineMixture>,
+        }
+        let Some(path) = &self.model else {
+            return Ok(None);
+        };
+        let bad = |reason: String| invalid("estimator.model", path, reason);
+        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+        let analysis: Analysis = serde_json::from_str(&text).map_err(|e| {
+            bad(format!(
+                "not the results.json of `estimator-proc analyze`: {e}"
+            ))
+        })?;
+        let found: Vec<usize> = analysis.windows.iter().map(|m| m.window).collect();
+        let m = analysis
+            .windows
+            .into_iter()
+            .find(|m| m.window == self.online_window)
+            .ok_or_else(|| {
+                bad(format!(
+                    "holds fits for windows {found:?}, none for estimator.online-window {}",
+                    self.online_window
+                ))
+            })?;
+        let k = self.components;
+        if [&m.weights, &m.means, &m.stds].iter().any(|v| v.len() != k) {
+            return Err(bad(format!(
+                "its fit for window {} does not have estimator.components = {k} components",
+                m.window
+            )));
+        }
+        let finite = m.weights.iter().chain(&m.means).all(|v| v.is_finite());
+        if !finite || !m.stds.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(bad(format!(
+                "its fit for window {} has a non-finite parameter or a std that is not positive",
+                m.window
+            )));
+        }
+        Ok(Some(m))
+    }
 }
 
 impl Config {
@@ -705,6 +768,7 @@ impl Default for EstimatorConfig {
             pool_size: 20_000,
             stay_prob: 0.98,
             min_speed: 0.02,
+            model: None,
         }
     }
 }
@@ -848,6 +912,7 @@ impl Config {
             };
             cfg.run.init_from.iter_mut().for_each(resolve);
             cfg.run.frozen.values_mut().for_each(resolve);
+            cfg.estimator.model.iter_mut().for_each(resolve);
         }
         if let (Some(h), Some(dir)) = (cfg.sim.terrain.heightmap.as_mut(), path.parent()) {
             // Absolute, so the resolved config the launcher writes into the run directory
@@ -1074,7 +1139,7 @@ impl Config {
         in_range("estimator.tol", e.tol, 1e-15, 1.0)?;
         in_range("estimator.var-floor", e.var_floor, 1e-15, 1.0)?;
         in_range("estimator.min-speed", e.min_speed, 0.0, 10.0)?;
-        count_in("estimator.refit-every", e.refit_every, 1, 1_000_000)?;
+        count_in("estimator.refit-every", e.refit_every, 0, 1_000_000)?;
         count_in("estimator.pool-size", e.pool_size, 10, 10_000_000)?;
         if !(e.stay_prob.is_finite() && (0.0..1.0).contains(&e.stay_prob)) {
             return Err(invalid(
@@ -1083,6 +1148,7 @@ impl Config {
                 "must be in [0, 1)",
             ));
         }
+        e.offline_mixture()?;
         let v = &self.supervise;
         for (field, backoff, max) in [
             (
@@ -1172,6 +1238,55 @@ mod tests {
         assert!(err.to_string().contains("run.learners"), "{err}");
         let err = parse("[run]\ninit-from = \"/nonexistent.ckpt\"\n").expect_err("missing");
         assert!(err.to_string().contains("run.init-from"), "{err}");
+    }
+
+    /// SPEC S7: the online estimator can start from the offline analysis's mixture for its
+    /// window; a file without one is refused when the config is checked.
+    #[test]
+    fn an_offline_model_is_read_for_the_online_window() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let results = dir.path().join("results.json");
+        let fit = |w: usize, std: f64| {
+            format!(
+                r#"{{"window": {w}, "n": 9, "weights": [0.5, 0.5], "means": [0.02, 0.08], "stds": [0.01, {std}], "accuracy": 0.9}}"#
+            )
+        };
+        let write = |fits: &[String]| {
+            let text = format!(r#"{{"input": "t.csv", "windows": [{}]}}"#, fits.join(","));
+            std::fs::write(&results, text).expect("write");
+        };
+        write(&[fit(10, 0.04), fit(70, 0.03)]);
+        let mut e = EstimatorConfig {
+            model: Some(results.clone()),
+            refit_every: 0,
+            ..EstimatorConfig::default()
+        };
+        let m = e.offline_mixture().expect("read").expect("a model");
+        assert_eq!(
+            (m.window, m.means, m.stds),
+            (70, vec![0.02, 0.08], vec![0.01, 0.03])
+        );
+        e.online_window = 40;
+        let err = e.offline_mixture().expect_err("no fit for 40").to_string();
+        assert!(
+            err.contains("windows [10, 70], none for estimator.online-window 40"),
+            "{err}"
+        );
+        e.online_window = 70;
+        write(&[fit(70, 0.0)]);
+        let err = e.offline_mixture().expect_err("zero std").to_string();
+        assert!(err.contains("std that is not positive"), "{err}");
+        std::fs::write(&results, "[]").expect("write");
+        let err = e
+            .offline_mixture()
+            .expect_err("not an analysis")
+            .to_string();
+        assert!(err.starts_with("config field `estimator.model`"), "{err}");
+        let cfg = Config {
+            estimator: e,
+            ..Config::default()
+        };
+        assert!(cfg.validate().is_err(), "checked with the config");
     }
 
     #[test]

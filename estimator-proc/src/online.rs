@@ -98,7 +98,7 @@ impl Pool {
 pub struct OnlineEstimator {
     opts: FitOptions,
     window: usize,
-    /// Observations between refits: `refit-every` ticks × envs.
+    /// Observations between refits: `refit-every` ticks × envs; `u64::MAX` (never) for 0.
     refit_interval: u64,
     min_first_fit: usize,
     stay_prob: f64,
@@ -124,7 +124,10 @@ impl OnlineEstimator {
         Ok(Self {
             opts: FitOptions::from_config(cfg, seed),
             window: cfg.online_window,
-            refit_interval: (cfg.refit_every.max(1) * num_envs) as u64,
+            refit_interval: match cfg.refit_every {
+                0 => u64::MAX,
+                ticks => (ticks * num_envs) as u64,
+            },
             min_first_fit: (MIN_POINTS_PER_COMPONENT * k).min(cfg.pool_size.max(k)),
             stay_prob: cfg.stay_prob,
             min_travel: 0.0,
@@ -163,6 +166,19 @@ impl OnlineEstimator {
         est.model = Some(model);
         est.next_fit_at = est.refit_interval;
         Ok(est)
+    }
+
+    /// [`with_model`](Self::with_model) with the offline fit `estimator.model` names (SPEC S7),
+    /// else [`new`](Self::new).
+    pub fn from_config(cfg: &EstimatorConfig, num_envs: usize, seed: u64) -> Result<Self> {
+        match cfg.offline_mixture()? {
+            None => Self::new(cfg, num_envs, seed),
+            Some(m) => {
+                let variances = m.stds.iter().map(|s| s * s).collect();
+                let model = Gmm::new(m.weights, m.means, variances)?;
+                Self::with_model(cfg, num_envs, seed, model)
+            }
+        }
     }
 
     /// Leaves out windows whose path is shorter than `min_step_travel` (metres per tick,
@@ -298,7 +314,7 @@ impl OnlineEstimator {
         {
             return;
         }
-        self.next_fit_at = self.stats.observations + self.refit_interval;
+        self.next_fit_at = self.stats.observations.saturating_add(self.refit_interval);
         let outcome = match &self.model {
             None => gmm::fit(&self.pool.values, &self.opts),
             Some(previous) => gmm::fit_from(&self.pool.values, previous, &self.opts),
@@ -355,6 +371,7 @@ fn argmax(v: &[f64]) -> usize {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     fn config(stay_prob: f64) -> EstimatorConfig {
         EstimatorConfig {
@@ -563,5 +580,44 @@ mod tests {
         est.reset_env(0).expect("reset");
         assert!(est.observe(0, 0.0).expect("observe").window_std.is_none());
         assert!(est.reset_env(1).is_err());
+    }
+
+    /// SPEC S7: with `refit-every = 0` the offline model classifies throughout, so one
+    /// terrain alone (here rough) stays one class; fitted online from scratch, the first fit
+    /// splits it into two.
+    #[test]
+    fn an_offline_model_keeps_one_terrain_in_one_class() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let results = dir.path().join("results.json");
+        let fit =
+            r#"{"window": 20, "weights": [0.5, 0.5], "means": [0.02, 0.08], "stds": [0.01, 0.03]}"#;
+        std::fs::write(&results, format!(r#"{{"windows": [{fit}]}}"#)).expect("write");
+        let mut rng = common::Rng::new(9);
+        let mut rough_share = |model: Option<PathBuf>| {
+            let cfg = EstimatorConfig {
+                model,
+                refit_every: 0,
+                ..config(0.0)
+            };
+            let mut est = OnlineEstimator::from_config(&cfg, 2, 1).expect("estimator");
+            let mut rough = 0;
+            for _ in 0..3000 {
+                for env in 0..2 {
+                    let e = est.observe(env, 0.08 * rng.normal()).expect("observe");
+                    rough += usize::from(e.class == Some(1));
+                }
+            }
+            (rough as f64 / 6000.0, est.stats().fits)
+        };
+        let (share, fits) = rough_share(Some(results.clone()));
+        assert_eq!(fits, 0, "never refitted");
+        assert!(share > 0.95, "rough share {share}");
+        let (share, fits) = rough_share(None);
+        assert_eq!(fits, 1, "fitted once");
+        // Its lower component is cut from the rough values (here a tenth of them).
+        assert!(
+            share < 0.93,
+            "rough alone split in two: rough share {share}"
+        );
     }
 }

@@ -8,7 +8,8 @@
 //! d. `d-analysis`: Table 3 and Figs. 5–8 (`estimator-proc analyze`);
 //! e. `e-specialists`: FTM and RTM fine-tuned from (b) at once, each on the transitions the
 //!    estimator (not the true area) assigns to its terrain, acting by switching (SPEC S8);
-//! f. `f-eval`: success rate and reach time of general, FTM and RTM in each area (Table 1);
+//! f. `f-eval`: success rate and reach time of general, FTM and RTM in each area (Table 1),
+//!    and of switching between FTM and RTM on stage d's terrain mixture;
 //! g. `report.md`: every table beside the paper's numbers, figures and learning curves.
 
 use super::UserError;
@@ -272,6 +273,11 @@ impl Pipeline {
         cfg.run.out_dir = eval.to_path_buf();
         cfg.sim.acting = Acting::Switch;
         cfg.sim.mean_actions = true;
+        // SPEC S7-S8: the estimator classifies with stage d's mixture, fitted on both
+        // terrains, and is not refitted: a fit on one area's windows alone would split that
+        // terrain into two classes and hand half of it to the other specialist.
+        cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
+        cfg.estimator.refit_every = 0;
         cfg.run.total_steps = self.eval_ticks() * r.eval_envs as u64;
         cfg.validate()?;
         let mut parts = Vec::new();

@@ -14,7 +14,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let control = bus.control_listener()?;
     let rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let tx = bus.sender::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None, n)?;
-    let mut est = OnlineEstimator::new(&cfg.estimator, n, cfg.run.seed)?
+    let mut est = OnlineEstimator::from_config(&cfg.estimator, n, cfg.run.seed)?
         .gate_stationary(cfg.min_step_travel());
     let mut out = vec![TerrainEstimate::default(); n];
     let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
