@@ -81,12 +81,7 @@ impl Pool {
         Self { shared, workers }
     }
 
-    /// How many parts each job is split into.
-    pub fn parts(&self) -> usize {
-        self.workers.len() + 1
-    }
-
-    /// Calls `job(k)` for every part `k` in `0..parts()` in parallel and returns when all
+    /// Calls `job(k)` for every part `k` (one per thread, `Pool::new`'s `parts`) in parallel and returns when all
     /// have returned. A panic in any part is re-raised here, after every part has finished.
     pub fn run(&self, job: &(dyn Fn(usize) + Sync)) {
         let last = self.workers.len();
@@ -170,7 +165,6 @@ mod tests {
     #[test]
     fn every_part_runs_once_per_round_on_its_own_thread() {
         let pool = Pool::new(3);
-        assert_eq!(pool.parts(), 3);
         let counts: Vec<AtomicUsize> = (0..3).map(|_| AtomicUsize::new(0)).collect();
         let names = Mutex::new(vec![String::new(); 3]);
         for _ in 0..100 {
