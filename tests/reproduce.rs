@@ -63,6 +63,7 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
     );
     for (stage_cfg, ground) in [
         ("e-specialists/config.toml", "roughness-scale = 1.2"),
+        ("e-specialists/config.toml", "learning-rate = 0.0001"),
         ("f-eval/general-rough-0.toml", "roughness-scale = 1.0"),
         ("c-collect/traces.toml", "roughness-scale = 0.8"),
     ] {

@@ -877,6 +877,10 @@ pub struct ReproduceConfig {
     /// (f) `sim.terrain.roughness-scale` of the evaluation, every model and area alike.
     /// [0, 2]. Default unset: the `[sim]` one (SPEC S1's 0.8).
     pub eval_roughness_scale: Option<f64>,
+    /// (e) `ppo.learning-rate` of the fine-tuning (it decays from there like every stage's).
+    /// (0, 1]. Default unset: the `[ppo]` one. Fine-tuning a converged model at the rate it
+    /// was trained from scratch with can move it away from what it already does well.
+    pub finetune_learning_rate: Option<f64>,
 }
 
 impl Default for ReproduceConfig {
@@ -892,6 +896,7 @@ impl Default for ReproduceConfig {
             eval_envs: 8,
             finetune_roughness_scale: None,
             eval_roughness_scale: None,
+            finetune_learning_rate: None,
         }
     }
 }
@@ -1186,6 +1191,9 @@ impl Config {
                 in_range(field, v, 0.0, 2.0)?;
             }
         }
+        if let Some(lr) = p.finetune_learning_rate {
+            in_range("reproduce.finetune-learning-rate", lr, 1e-12, 1.0)?;
+        }
         for (field, v, hi) in [
             ("reproduce.flat-steps", p.flat_steps, 10_000_000_000),
             ("reproduce.general-steps", p.general_steps, 10_000_000_000),
@@ -1353,9 +1361,17 @@ mod tests {
 
     #[test]
     fn stage_roughness_is_optional_and_round_trips() {
-        let c = parse("[reproduce]\nfinetune-roughness-scale = 1.2\n").expect("valid");
+        let c =
+            parse("[reproduce]\nfinetune-roughness-scale = 1.2\nfinetune-learning-rate = 1e-4\n")
+                .expect("valid");
         assert_eq!(c.reproduce.finetune_roughness_scale, Some(1.2));
         assert_eq!(c.reproduce.eval_roughness_scale, None);
+        assert_eq!(c.reproduce.finetune_learning_rate, Some(1e-4));
+        let e = parse("[reproduce]\nfinetune-learning-rate = 0.0\n").expect_err("zero rate");
+        assert!(
+            e.to_string().contains("reproduce.finetune-learning-rate"),
+            "{e}"
+        );
         assert_eq!(parse(&c.to_toml()).expect("round trip"), c);
     }
 

@@ -444,6 +444,9 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     if let Some(scale) = r.finetune_roughness_scale {
         e.sim.terrain.roughness_scale = scale;
     }
+    if let Some(lr) = r.finetune_learning_rate {
+        e.ppo.learning_rate = lr;
+    }
     p.train("e-specialists", e)?;
     let models = [
         ("general", general),
