@@ -81,8 +81,9 @@ impl Pool {
         Self { shared, workers }
     }
 
-    /// Calls `job(k)` for every part `k` (one per thread, `Pool::new`'s `parts`) in parallel and returns when all
-    /// have returned. A panic in any part is re-raised here, after every part has finished.
+    /// Calls `job(k)` for every part `k` in `0..parts` (`Pool::new`'s, one per thread) in
+    /// parallel and returns when all have returned. A panic in any part is re-raised here,
+    /// after every part has finished.
     pub fn run(&self, job: &(dyn Fn(usize) + Sync)) {
         let last = self.workers.len();
         if last == 0 {
