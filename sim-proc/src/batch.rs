@@ -5,7 +5,6 @@ use crate::env::{Env, SharedTerrain, StepInfo};
 use crate::pool::Pool;
 use common::config::SimConfig;
 use common::{ACT_DIM, OBS_DIM};
-use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Mutex, PoisonError};
 
 /// All envs of a run.
@@ -47,23 +46,17 @@ impl Batch {
         infos: &mut [StepInfo],
         obs: &mut [[f32; OBS_DIM]],
     ) {
-        // Each env is taken by exactly one thread; the mutex only proves that to the compiler.
-        let work: Vec<Mutex<Option<_>>> = self
-            .envs
-            .iter_mut()
-            .zip(actions)
-            .zip(infos)
-            .zip(obs)
-            .map(|one| Mutex::new(Some(one)))
-            .collect();
-        let next = AtomicUsize::new(0);
+        // One shared iterator: each thread takes the next env under the lock and steps it
+        // outside, so nothing is allocated per tick.
+        let work = Mutex::new(self.envs.iter_mut().zip(actions).zip(infos).zip(obs));
         self.pool.run(&|_| {
-            while let Some(one) = work.get(next.fetch_add(1, Ordering::Relaxed)) {
-                let taken = one.lock().unwrap_or_else(PoisonError::into_inner).take();
-                if let Some((((e, a), i), o)) = taken {
-                    *i = e.step(*a);
-                    *o = e.observe();
-                }
+            loop {
+                let next = work.lock().unwrap_or_else(PoisonError::into_inner).next();
+                let Some((((e, a), i), o)) = next else {
+                    break;
+                };
+                *i = e.step(*a);
+                *o = e.observe();
             }
         });
     }
