@@ -94,6 +94,9 @@ pub struct RunConfig {
     /// switching between fixed FTM and RTM): `{ flat = "ftm.ckpt", rough = "rtm.ckpt" }`.
     /// Relative paths are relative to the config file. No slot may also be in `learners`.
     pub frozen: std::collections::BTreeMap<PolicySlot, PathBuf>,
+    /// The sim also writes every env's per-tick telemetry to `<run dir>/telemetry.csv`, as
+    /// `sim-proc --telemetry` does (one row per env and tick; large). Default false.
+    pub telemetry_csv: bool,
 }
 
 /// A policy slot of the sim's pool (DESIGN §5): what a learner fills and an env acts with.
@@ -199,6 +202,7 @@ impl Default for RunConfig {
             learners: vec![PolicySlot::General],
             init_from: None,
             frozen: Default::default(),
+            telemetry_csv: false,
         }
     }
 }
@@ -530,6 +534,21 @@ pub struct TaskConfig {
     pub progress_scale: f64,
     /// Redraws before giving up on a target inside the area (then the last draw is clamped into the area). 1 ..= 10^6. Default 1000.
     pub max_target_draws: usize,
+    /// Where episodes start: "chained" (SPEC S3) or "course" (paired evaluation). Default "chained".
+    pub episodes: EpisodeStart,
+}
+
+/// Where an env's next episode starts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum EpisodeStart {
+    /// SPEC S3: where the robot stands, with a new target drawn around it.
+    Chained,
+    /// A course of seeded waypoints, the same for every policy: leg k starts with the robot
+    /// placed at waypoint k (the last leg's target, whatever happened on that leg) facing a
+    /// seeded heading, and drives to waypoint k + 1, drawn around it by SPEC S3's rule. Two
+    /// policies on one seed drive the same legs, so their outcomes pair leg by leg.
+    Course,
 }
 
 impl TaskConfig {
@@ -552,6 +571,7 @@ impl Default for TaskConfig {
             tip_limit_deg: 60.0,
             progress_scale: 100.0,
             max_target_draws: 1000,
+            episodes: EpisodeStart::Chained,
         }
     }
 }
@@ -881,6 +901,13 @@ pub struct ReproduceConfig {
     /// (0, 1]. Default unset: the `[ppo]` one. Fine-tuning a converged model at the rate it
     /// was trained from scratch with can move it away from what it already does well.
     pub finetune_learning_rate: Option<f64>,
+    /// (g) Non-inferiority margins of the shape checks: "A at least as good as B" reads "no"
+    /// only when A falls short of B by more than `margin-pp` percentage points of success,
+    /// or by more than `margin-s` seconds of reach time, beyond the noise of the paired
+    /// comparison. [0, 100] and [0, 10]. Default 1 pp and 0.05 s (half a decision step: the
+    /// legs' reach times count whole steps). 0 and 0 for the strict test.
+    pub margin_pp: f64,
+    pub margin_s: f64,
 }
 
 impl Default for ReproduceConfig {
@@ -897,6 +924,8 @@ impl Default for ReproduceConfig {
             finetune_roughness_scale: None,
             eval_roughness_scale: None,
             finetune_learning_rate: None,
+            margin_pp: 1.0,
+            margin_s: 0.05,
         }
     }
 }
@@ -1194,6 +1223,8 @@ impl Config {
         if let Some(lr) = p.finetune_learning_rate {
             in_range("reproduce.finetune-learning-rate", lr, 1e-12, 1.0)?;
         }
+        in_range("reproduce.margin-pp", p.margin_pp, 0.0, 100.0)?;
+        in_range("reproduce.margin-s", p.margin_s, 0.0, 10.0)?;
         for (field, v, hi) in [
             ("reproduce.flat-steps", p.flat_steps, 10_000_000_000),
             ("reproduce.general-steps", p.general_steps, 10_000_000_000),
@@ -1350,6 +1381,13 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "config field `reproduce.eval-roughness-scale` = 2.5: must be in [0, 2]"
+        );
+        let e = parse("[reproduce]\nmargin-s = -0.1\n").expect_err("negative margin");
+        assert!(e.to_string().contains("reproduce.margin-s"), "{e}");
+        let e = parse("[sim.task]\nepisodes = \"reset\"\n").expect_err("unknown start");
+        assert!(
+            e.to_string().contains("chained") && e.to_string().contains("course"),
+            "{e}"
         );
     }
 

@@ -4,7 +4,7 @@
 use crate::robot::{self, Robot, TERRAIN_GROUP};
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
-use common::config::{AreaKind, Rect, SimConfig};
+use common::config::{AreaKind, EpisodeStart, Rect, SimConfig};
 use common::{OBS_DIM, Rng};
 use glam::{EulerRot, Quat, Vec3};
 use rapier3d::prelude::*;
@@ -12,6 +12,10 @@ use std::sync::Arc;
 
 /// Height above the ground at which a robot is dropped when (re)spawned, metres.
 const SPAWN_CLEARANCE: f64 = 0.003;
+
+/// Env `id`'s course is drawn from random stream `COURSE_STREAMS + id` of the run seed, apart
+/// from the streams its spawns and chained targets come from.
+const COURSE_STREAMS: u64 = 1 << 32;
 
 /// The terrain and its collider, built once and shared by every env.
 #[derive(Clone)]
@@ -86,6 +90,8 @@ pub struct Env {
     pub episode_index: u64,
     pub tick: u64,
     rng: Rng,
+    /// Seeds leg k of an evaluation course (`EpisodeStart::Course`) as stream k.
+    course_seed: u64,
     faults: u64,
     action: [f32; 2],
 }
@@ -113,6 +119,7 @@ impl Env {
             episode_index: 0,
             tick: 0,
             rng,
+            course_seed: Rng::derive(seed, COURSE_STREAMS + id as u64).next_u64(),
             faults: 0,
             action: [0.0; 2],
         };
@@ -120,10 +127,20 @@ impl Env {
         env
     }
 
-    /// SPEC S3: later episodes start where the robot is, with a new target around it.
+    /// SPEC S3: later episodes start where the robot is, with a new target around it. On an
+    /// evaluation course, leg k > 0 first places the robot at the last leg's target, and leg
+    /// k's heading and target come from the course's stream k, whatever the policy did.
     fn new_episode(&mut self) {
+        let mut leg = (self.cfg.task.episodes == EpisodeStart::Course)
+            .then(|| Rng::derive(self.course_seed, self.episode_index));
+        if let Some(leg) = leg.as_mut().filter(|_| self.episode_index > 0) {
+            let yaw = leg.range(-std::f64::consts::PI, std::f64::consts::PI);
+            (self.world, self.robot) =
+                build_world(&self.cfg, &self.terrain, self.episode.target, yaw);
+        }
         let start = self.pose().ground();
-        let target = task::draw_target(&self.cfg.task, &self.rect, start, &mut self.rng);
+        let rng = leg.as_mut().unwrap_or(&mut self.rng);
+        let target = task::draw_target(&self.cfg.task, &self.rect, start, rng);
         self.episode = Episode::new(&self.cfg.task, start, target);
     }
 
@@ -255,7 +272,7 @@ impl Env {
         };
         let (target, episode_steps) = (self.episode.target, self.episode.steps);
         if let Some(ending) = result.ending {
-            if ending.respawns() {
+            if ending.respawns() && self.cfg.task.episodes == EpisodeStart::Chained {
                 let (world, robot) = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
                 (self.world, self.robot) = (world, robot);
             }
@@ -332,6 +349,7 @@ pub fn build_world(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::controllers::{Controller, GoToController};
     use crate::terrain::Terrain;
 
     #[test]
@@ -362,6 +380,49 @@ mod tests {
         assert!(bad.observe().iter().all(|v| v.is_finite()));
         // The other env never noticed.
         assert_eq!(good.step([1.0, 1.0]).faults, 0);
+    }
+
+    /// The legs (start, target) an env drives in its first `legs` episodes under `act`.
+    fn legs(cfg: &SimConfig, legs: u64, mut act: impl FnMut(&Env) -> [f32; 2]) -> Vec<[f64; 4]> {
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut env = Env::new(0, cfg, &terrain, 9);
+        let mut seen = Vec::new();
+        while env.episode_index < legs {
+            if seen.len() as u64 == env.episode_index {
+                let (s, t) = (env.episode.start, env.episode.target);
+                seen.push([s[0], s[1], t[0], t[1]]);
+            }
+            env.step(act(&env));
+        }
+        seen
+    }
+
+    #[test]
+    fn an_evaluation_course_gives_every_policy_the_same_legs() {
+        let mut cfg = SimConfig::default();
+        cfg.task.episodes = EpisodeStart::Course;
+        // One policy reaches its targets, the other drives straight off and fails every leg.
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        let reaching = legs(&cfg, 4, |env| goto.act(0, &env.observe()));
+        let limit = cfg.robot.action_limit as f32;
+        let failing = legs(&cfg, 4, |_| [limit, limit]);
+        assert_eq!(reaching.len(), 4);
+        for (a, b) in reaching.iter().zip(&failing) {
+            // Targets are the same draws; starts differ at most by the f32 placement.
+            assert!(
+                a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-6),
+                "{a:?} vs {b:?}"
+            );
+        }
+        for w in reaching.windows(2) {
+            let (end, start) = ([w[0][2], w[0][3]], [w[1][0], w[1][1]]);
+            assert!((end[0] - start[0]).abs() < 1e-6 && (end[1] - start[1]).abs() < 1e-6);
+        }
+        // Chained episodes (SPEC S3) start where each robot stands instead.
+        cfg.task.episodes = EpisodeStart::Chained;
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        let chained = legs(&cfg, 3, |env| goto.act(0, &env.observe()));
+        assert_ne!(chained[1], legs(&cfg, 3, |_| [limit, limit])[1]);
     }
 
     #[test]

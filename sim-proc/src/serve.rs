@@ -8,6 +8,7 @@ use crate::Batch;
 use crate::actor::Actor;
 use crate::controllers::PolicyController;
 use crate::env::SharedTerrain;
+use crate::standalone::{TelemetryCsv, telemetry_row};
 use crate::switching::{PolicyPool, Switcher};
 use crate::terrain::Terrain;
 use anyhow::Context;
@@ -17,6 +18,7 @@ use common::wire::{
     self, EnvTick, PolicyHeader, RolloutHeader, TerrainEstimate, TerrainHeader, TickHeader,
 };
 use common::{ACT_DIM, Config, OBS_DIM, Policy, Transition};
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// How long to sleep between checks while waiting for a policy.
@@ -163,7 +165,7 @@ fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
 }
 
 /// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request.
-pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
+pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Result<()> {
     let n = cfg.sim.num_envs();
     let t_steps = cfg.ppo.rollout_steps(n);
     let bus = Bus::connect(run_id, "sim")?;
@@ -177,6 +179,7 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
 
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
     let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
+    let mut csv = telemetry.map(TelemetryCsv::create).transpose()?;
     let mut inbox = Inbox::connect(&bus, cfg.run.seed, !cfg.sim.mean_actions)?;
     let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
@@ -206,6 +209,11 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
             let wanted = switcher.update(&classes);
             let pool = inbox.pool.as_mut().context("no policy")?;
             actor.tick(&mut batch, pool, wanted, &classes, &mut chunk);
+            if let Some(csv) = csv.as_mut() {
+                for (env, info) in batch.envs.iter().zip(&actor.infos) {
+                    csv.write(&telemetry_row(env, info))?;
+                }
+            }
             if let Some(est) = terrain_rx.latest()? {
                 for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
                     classes[e.env as usize] = e.class;
@@ -280,6 +288,9 @@ pub fn serve(cfg: &Config, run_id: &str) -> anyhow::Result<()> {
         }
     }
     tele_tx.flush()?;
+    if let Some(csv) = csv.as_mut() {
+        csv.flush()?;
+    }
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(
         env_steps,

@@ -7,7 +7,7 @@ use crate::terrain::Terrain;
 use crate::{Batch, SimError};
 use anyhow::Context;
 use common::{Config, OBS_DIM, Policy, TelemetryRow};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Which controller drives the envs.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -48,7 +48,7 @@ pub struct Args {
     /// Ticks a random command is held.
     #[arg(long, default_value_t = 10, value_parser = clap::value_parser!(u32).range(1..))]
     pub hold: u32,
-    /// Write per-tick telemetry (CSV, one row per env and tick) here.
+    /// Write per-tick telemetry (CSV, one row per env and tick) here; in a run too.
     #[arg(long)]
     pub telemetry: Option<PathBuf>,
     /// Override `run.seed`.
@@ -60,7 +60,7 @@ pub struct Args {
     pub json: Option<PathBuf>,
     /// Join run ID over shared memory (as the launcher starts it) instead of running alone:
     /// act with the learner's policy and publish rollouts and telemetry.
-    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "sample", "steps", "telemetry", "json"])]
+    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "sample", "steps", "json"])]
     pub run_id: Option<String>,
 }
 
@@ -110,6 +110,51 @@ pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
         success: info.ending == Some(crate::task::Ending::Success),
         target_x: info.target[0],
         target_z: info.target[1],
+    }
+}
+
+/// A telemetry CSV (`--telemetry`), one row per env and tick. A file that already holds rows
+/// is appended to without a second header: a sim restarted inside a run keeps its rows.
+pub struct TelemetryCsv {
+    path: PathBuf,
+    writer: csv::Writer<std::fs::File>,
+}
+
+impl TelemetryCsv {
+    pub fn create(path: &Path) -> Result<Self, SimError> {
+        let err = |e: std::io::Error| SimError::Telemetry {
+            path: path.to_path_buf(),
+            reason: e.to_string(),
+        };
+        let file = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)
+            .map_err(err)?;
+        let fresh = file.metadata().map_err(err)?.len() == 0;
+        Ok(Self {
+            path: path.to_path_buf(),
+            writer: csv::WriterBuilder::new()
+                .has_headers(fresh)
+                .from_writer(file),
+        })
+    }
+
+    fn error(&self, e: &dyn std::fmt::Display) -> SimError {
+        SimError::Telemetry {
+            path: self.path.clone(),
+            reason: e.to_string(),
+        }
+    }
+
+    pub fn write(&mut self, row: &TelemetryRow) -> anyhow::Result<()> {
+        self.writer
+            .serialize(row)
+            .map_err(|e| self.error(&e).into())
+    }
+
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        self.writer.flush().map_err(|e| self.error(&e).into())
     }
 }
 
@@ -165,7 +210,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         cfg.run.seed = seed;
     }
     if let Some(run) = &args.run_id {
-        crate::serve::serve(&cfg, run)?;
+        crate::serve::serve(&cfg, run, args.telemetry.as_deref())?;
         return Ok(Summary::default());
     }
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
@@ -202,15 +247,11 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
     let started = std::time::Instant::now();
     let summary = match &args.telemetry {
         Some(path) => {
-            let tele_err = |e: &dyn std::fmt::Display| SimError::Telemetry {
-                path: path.clone(),
-                reason: e.to_string(),
-            };
-            let mut w = csv::Writer::from_path(path).map_err(|e| tele_err(&e))?;
+            let mut csv = TelemetryCsv::create(path)?;
             let s = drive(&mut batch, controller.as_mut(), args.steps, |row| {
-                Ok(w.serialize(row).map_err(|e| tele_err(&e))?)
+                csv.write(row)
             })?;
-            w.flush().map_err(|e| tele_err(&e))?;
+            csv.flush()?;
             s
         }
         None => drive(&mut batch, controller.as_mut(), args.steps, |_| Ok(()))?,

@@ -106,6 +106,9 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     })
 }
 
+/// Where a run with `run.telemetry-csv` keeps the sim's telemetry, in its run directory.
+pub(crate) const TELEMETRY_CSV: &str = "telemetry.csv";
+
 /// The launcher's node name on a run's bus: a live one means the run id is taken.
 pub(crate) const LAUNCHER_NODE: &str = "launcher";
 
@@ -209,6 +212,13 @@ pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyho
         ),
         policy: sup.learner,
     });
+    let mut sim_args = join(&[]);
+    if cfg.run.telemetry_csv {
+        sim_args.extend([
+            "--telemetry".into(),
+            dir.join(TELEMETRY_CSV).display().to_string(),
+        ]);
+    }
     let specs = learners.chain(frozen).chain([
         Spec {
             name: "estimator",
@@ -219,7 +229,7 @@ pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyho
         Spec {
             name: "sim",
             bin: sim_bin,
-            args: join(&[]),
+            args: sim_args,
             policy: sup.sim,
         },
     ]);
