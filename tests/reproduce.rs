@@ -48,7 +48,7 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
     let checks = report
         .lines()
         .filter(|l| {
-            ["| yes |", "| within noise |", "| no |"]
+            ["| yes |", "| within margin |", "| not shown |", "| no |"]
                 .iter()
                 .any(|v| l.ends_with(v))
         })
@@ -65,17 +65,45 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         ("e-specialists/config.toml", "roughness-scale = 1.2"),
         ("e-specialists/config.toml", "learning-rate = 0.0001"),
         ("f-eval/general-rough-0.toml", "roughness-scale = 1.0"),
+        ("f-eval/general-rough-0.toml", "episodes = \"course\""),
         ("c-collect/traces.toml", "roughness-scale = 0.8"),
     ] {
         let text = std::fs::read_to_string(out.join(stage_cfg)).expect(stage_cfg);
         assert!(text.contains(ground), "{stage_cfg}: {text}");
     }
     // Switching classifies with stage d's mixture, never refitted on one area's windows.
-    let switch = std::fs::read_to_string(out.join("f-eval/switch-rough-0/config.toml"))
+    let switch = std::fs::read_to_string(out.join("f-eval/switching-rough-0/config.toml"))
         .expect("switching config");
-    for line in ["d-analysis/results.json\"", "refit-every = 0"] {
+    for line in [
+        "d-analysis/results.json\"",
+        "refit-every = 0",
+        "episodes = \"course\"",
+    ] {
         assert!(switch.contains(line), "{line}: {switch}");
     }
+    // Paired evaluation: the runtime's sim (switching) and `sim-proc` alone (one model) drive
+    // the same course, leg by leg.
+    let legs = |csv: &str| -> Vec<[String; 3]> {
+        let mut r = csv::Reader::from_path(out.join("f-eval").join(csv)).expect(csv);
+        let h = r.headers().expect("headers").clone();
+        let col = |name: &str| h.iter().position(|c| c == name).expect(name);
+        let (env, leg, x, z) = (col("env"), col("episode"), col("target_x"), col("target_z"));
+        let mut legs: Vec<[String; 3]> = r
+            .records()
+            .map(|row| row.expect("row"))
+            .filter(|row| &row[env] == "0")
+            .map(|row| [&row[leg], &row[x], &row[z]].map(String::from))
+            .collect();
+        legs.dedup();
+        legs
+    };
+    let (alone, switching) = (
+        legs("general-mixed-0.csv"),
+        legs("switching-mixed-0/telemetry.csv"),
+    );
+    let n = alone.len().min(switching.len());
+    assert!(n >= 1, "{alone:?} {switching:?}");
+    assert_eq!(alone[..n], switching[..n]);
     let table3 = report
         .lines()
         .filter(|l| {

@@ -13,11 +13,11 @@
 //! g. `report.md`: every table beside the paper's numbers, figures and learning curves.
 
 use super::UserError;
-use super::run::{execute, learner_dir};
+use super::run::{TELEMETRY_CSV, execute, learner_dir};
 use crate::supervise;
 use anyhow::Context;
 use common::Config;
-use common::config::{Acting, AreaKind, PolicySlot};
+use common::config::{Acting, AreaKind, EpisodeStart, PolicySlot};
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitCode};
 
@@ -59,6 +59,11 @@ const EPISODE_TICKS_GUESS: u64 = 50;
 /// SPEC S7's Table 3: window, accuracy %.
 const PAPER_TABLE_3: [(u64, f64); 4] = [(10, 61.13), (20, 70.73), (40, 85.87), (70, 98.79)];
 
+/// Each leg an evaluation drove, by run (part), env and leg: its length in decision steps
+/// when the robot reached the target, `None` when the leg failed. Stage f drives every model
+/// on the same seeded courses (`EpisodeStart::Course`), so two models' legs pair up by index.
+type Legs = Vec<Vec<Vec<Option<u32>>>>;
+
 /// One evaluation cell: a model in an area.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Cell {
@@ -70,6 +75,25 @@ struct Cell {
 }
 
 impl Cell {
+    /// Success count and reach-time moments of every leg in `legs`.
+    fn of(legs: &Legs, decision_dt: f64) -> Self {
+        let all: Vec<Option<u32>> = legs.iter().flatten().flatten().copied().collect();
+        let reach: Vec<f64> = all
+            .iter()
+            .flatten()
+            .map(|&t| t as f64 * decision_dt)
+            .collect();
+        let n = reach.len().max(1) as f64;
+        let mean = reach.iter().sum::<f64>() / n;
+        let var = reach.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / n;
+        Self {
+            episodes: all.len() as u64,
+            successes: reach.len() as u64,
+            mean_reach_s: mean,
+            std_reach_s: var.sqrt(),
+        }
+    }
+
     fn success_pct(&self) -> f64 {
         100.0 * self.successes as f64 / self.episodes.max(1) as f64
     }
@@ -84,9 +108,19 @@ impl Cell {
     }
 }
 
-/// Episode outcomes in a telemetry CSV (`sim-proc --telemetry`): each episode's length
-/// from its first row to the row that ends it; reach times are successful episodes' lengths.
-fn episodes_in(path: &Path, decision_dt: f64) -> anyhow::Result<Cell> {
+/// A model's evaluation in an area: the pooled cell and every leg behind it.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+struct Evaluated {
+    model: String,
+    area: AreaKind,
+    cell: Cell,
+    legs: Legs,
+}
+
+/// The legs each env ended in a telemetry CSV (`sim-proc --telemetry`), in order: a leg's
+/// length runs from the env's first row after the previous ending to the row that ends it.
+/// Legs still running at the end are left out.
+fn legs_in(path: &Path) -> anyhow::Result<Vec<Vec<Option<u32>>>> {
     let mut reader =
         csv::Reader::from_path(path).with_context(|| format!("cannot read {}", path.display()))?;
     let headers = reader.headers()?.clone();
@@ -96,39 +130,38 @@ fn episodes_in(path: &Path, decision_dt: f64) -> anyhow::Result<Cell> {
             .position(|h| h == name)
             .with_context(|| format!("{}: no `{name}` column", path.display()))
     };
-    let (env, terminated, truncated, success) = (
+    let (env, episode, terminated, truncated, success) = (
         col("env")?,
+        col("episode")?,
         col("terminated")?,
         col("truncated")?,
         col("success")?,
     );
-    let mut length: Vec<u64> = Vec::new();
-    let (mut episodes, mut reach) = (0u64, Vec::new());
+    let mut legs: Vec<Vec<Option<u32>>> = Vec::new();
+    let mut length: Vec<u32> = Vec::new();
     for row in reader.records() {
         let row = row?;
         let e: usize = row[env].parse().context("env")?;
-        if e >= length.len() {
+        let leg: usize = row[episode].parse().context("episode")?;
+        if e >= legs.len() {
+            legs.resize(e + 1, Vec::new());
             length.resize(e + 1, 0);
         }
+        // A sim restarted inside a run starts its courses again: its legs would not pair.
+        anyhow::ensure!(
+            leg == legs[e].len(),
+            "{}: env {e} is on leg {leg} after ending {} (the sim restarted?)",
+            path.display(),
+            legs[e].len()
+        );
         length[e] += 1;
         let flag = |i: usize| &row[i] == "true" || &row[i] == "1";
         if flag(terminated) || flag(truncated) {
-            episodes += 1;
-            if flag(success) {
-                reach.push(length[e] as f64 * decision_dt);
-            }
+            legs[e].push(flag(success).then_some(length[e]));
             length[e] = 0;
         }
     }
-    let n = reach.len().max(1) as f64;
-    let mean = reach.iter().sum::<f64>() / n;
-    let var = reach.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / n;
-    Ok(Cell {
-        episodes,
-        successes: reach.len() as u64,
-        mean_reach_s: mean,
-        std_reach_s: var.sqrt(),
-    })
+    Ok(legs)
 }
 
 /// The pipeline's directories and binaries.
@@ -256,55 +289,77 @@ impl Pipeline {
         Ok(())
     }
 
+    /// Evaluates `model` in `area`: runs `run_part` (the config, the part's name; returns its
+    /// telemetry CSV) with seeds `run.seed`, +1, … until the cell has its episodes. Every model
+    /// runs the same seeds on the same courses, so their legs pair up.
+    fn evaluate(
+        &self,
+        model: &str,
+        area: AreaKind,
+        mut run_part: impl FnMut(&Config, &str) -> anyhow::Result<PathBuf>,
+    ) -> anyhow::Result<Evaluated> {
+        let mut cfg = self.eval_in(area);
+        let mut legs = Legs::new();
+        let dt = cfg.sim.decision_dt();
+        while Cell::of(&legs, dt).episodes < self.base.reproduce.eval_episodes {
+            let name = format!("{}-{}-{}", model.to_lowercase(), area.name(), legs.len());
+            let csv = run_part(&cfg, &name)?;
+            let part = legs_in(&csv)?;
+            anyhow::ensure!(
+                part.iter().any(|env| !env.is_empty()),
+                "{} holds no finished episode",
+                csv.display()
+            );
+            legs.push(part);
+            cfg.run.seed = cfg.run.seed.wrapping_add(1);
+        }
+        let cell = Cell::of(&legs, dt);
+        self.say(&format!(
+            "f-eval: {model} on {} ground: {:.1}% of {} episodes, reach s {}",
+            area.name(),
+            cell.success_pct(),
+            cell.episodes,
+            cell.reach()
+        ));
+        Ok(Evaluated {
+            model: model.into(),
+            area,
+            cell,
+            legs,
+        })
+    }
+
     /// SPEC S8's switching policy in `area`: FTM and RTM served frozen, each env acting with
     /// the one its live terrain estimate points to (mean actions), through the full runtime
-    /// with the estimator; runs until the cell has its episodes.
+    /// with the estimator.
     fn switching(
         &self,
         area: AreaKind,
         frozen: &std::collections::BTreeMap<PolicySlot, PathBuf>,
         eval: &Path,
-    ) -> anyhow::Result<Cell> {
-        let r = &self.base.reproduce;
-        let mut cfg = self.eval_in(area);
-        cfg.run.learners.clear();
-        cfg.run.frozen = frozen.clone();
-        cfg.run.mode = common::config::LearnMode::Async;
-        cfg.run.out_dir = eval.to_path_buf();
-        cfg.sim.acting = Acting::Switch;
-        cfg.sim.mean_actions = true;
-        // SPEC S7-S8: the estimator classifies with stage d's mixture, fitted on both
-        // terrains, and is not refitted: a fit on one area's windows alone would split that
-        // terrain into two classes and hand half of it to the other specialist.
-        cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
-        cfg.estimator.refit_every = 0;
-        cfg.run.total_steps = self.eval_ticks() * r.eval_envs as u64;
-        cfg.validate()?;
-        let mut parts = Vec::new();
-        while merge(&parts).episodes < r.eval_episodes {
-            let name = format!("switch-{}-{}", area.name(), parts.len());
-            if !execute(&cfg, &name, &self.run_id(&name), self.quiet)? {
+    ) -> anyhow::Result<Evaluated> {
+        let steps = self.eval_ticks() * self.base.reproduce.eval_envs as u64;
+        self.evaluate("switching", area, |base, name| {
+            let mut cfg = base.clone();
+            cfg.run.learners.clear();
+            cfg.run.frozen = frozen.clone();
+            cfg.run.mode = common::config::LearnMode::Async;
+            cfg.run.out_dir = eval.to_path_buf();
+            cfg.run.telemetry_csv = true;
+            cfg.run.total_steps = steps;
+            cfg.sim.acting = Acting::Switch;
+            cfg.sim.mean_actions = true;
+            // SPEC S7-S8: the estimator classifies with stage d's mixture, fitted on both
+            // terrains, and is not refitted: a fit on one area's windows alone would split
+            // that terrain into two classes and hand half of it to the other specialist.
+            cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
+            cfg.estimator.refit_every = 0;
+            cfg.validate()?;
+            if !execute(&cfg, name, &self.run_id(name), self.quiet)? {
                 anyhow::bail!("interrupted during {name}; run again to resume");
             }
-            let path = eval.join(&name).join("summary.json");
-            let s: serde_json::Value = serde_json::from_str(
-                &std::fs::read_to_string(&path)
-                    .with_context(|| format!("cannot read {}", path.display()))?,
-            )?;
-            parts.push(Cell {
-                episodes: s["episodes"].as_u64().unwrap_or(0),
-                successes: s["successes"].as_u64().unwrap_or(0),
-                mean_reach_s: s["reach_seconds"]["mean"].as_f64().unwrap_or(0.0),
-                std_reach_s: s["reach_seconds"]["std"].as_f64().unwrap_or(0.0),
-            });
-            anyhow::ensure!(
-                parts.last().is_some_and(|c| c.episodes > 0),
-                "{name} ended no episode; see {}",
-                path.display()
-            );
-            cfg.run.seed = cfg.run.seed.wrapping_add(1);
-        }
-        Ok(merge(&parts))
+            Ok(eval.join(name).join(TELEMETRY_CSV))
+        })
     }
 
     /// The base config with `flat` + `rough` envs.
@@ -317,11 +372,12 @@ impl Pipeline {
     }
 
     /// Stage f's config in `area`: `reproduce.eval-envs` envs, all there, on the
-    /// evaluation's ground.
+    /// evaluation's ground, each driving a seeded course (the same legs for every model).
     fn eval_in(&self, area: AreaKind) -> Config {
         let r = &self.base.reproduce;
         let mut c = self.base.clone();
         c.sim.only_in(area, r.eval_envs);
+        c.sim.task.episodes = EpisodeStart::Course;
         if let Some(scale) = r.eval_roughness_scale {
             c.sim.terrain.roughness_scale = scale;
         }
@@ -375,9 +431,6 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
     }
     Ok(ExitCode::SUCCESS)
 }
-
-/// An evaluation cell of a model in an area.
-type Evaluated = (String, AreaKind, Cell);
 
 /// One seed's pipeline, stages a–g in `p.out`.
 fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
@@ -464,44 +517,18 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
 
     let eval = p.stage_dir("f-eval");
     let cells_path = eval.join("cells.json");
-    let cells: Vec<(String, AreaKind, Cell)> = if p.done("f-eval") {
+    let cells: Vec<Evaluated> = if p.done("f-eval") {
         serde_json::from_str(&std::fs::read_to_string(&cells_path)?)?
     } else {
         std::fs::create_dir_all(p.fresh("f-eval")?)?;
         let mut cells = Vec::new();
         for (name, weights) in &models {
             for area in EVAL_AREAS {
-                let mut cfg = p.eval_in(area);
-                let mut cell = Cell {
-                    episodes: 0,
-                    successes: 0,
-                    mean_reach_s: 0.0,
-                    std_reach_s: 0.0,
-                };
-                let mut parts = Vec::new();
-                // More seeds until the cell has its episodes.
-                while cell.episodes < r.eval_episodes {
-                    let csv = eval.join(format!(
-                        "{}-{}-{}.csv",
-                        name.to_lowercase(),
-                        area.name(),
-                        parts.len()
-                    ));
-                    p.drive(&cfg, weights, p.eval_ticks(), &csv)?;
-                    let part = episodes_in(&csv, cfg.sim.decision_dt())?;
-                    anyhow::ensure!(part.episodes > 0, "{} holds no episode", csv.display());
-                    parts.push(part);
-                    cell = merge(&parts);
-                    cfg.run.seed = cfg.run.seed.wrapping_add(1);
-                }
-                p.say(&format!(
-                    "f-eval: {name} on {} ground: {:.1}% of {} episodes, reach s {}",
-                    area.name(),
-                    cell.success_pct(),
-                    cell.episodes,
-                    cell.reach()
-                ));
-                cells.push((name.to_string(), area, cell));
+                cells.push(p.evaluate(name, area, |cfg, part| {
+                    let csv = eval.join(format!("{part}.csv"));
+                    p.drive(cfg, weights, p.eval_ticks(), &csv)?;
+                    Ok(csv)
+                })?);
             }
         }
         let frozen = [
@@ -515,17 +542,9 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
             ),
         ];
         for area in EVAL_AREAS {
-            let cell = p.switching(area, &frozen.clone().into(), &eval)?;
-            p.say(&format!(
-                "f-eval: switching on {} ground: {:.1}% of {} episodes, reach s {}",
-                area.name(),
-                cell.success_pct(),
-                cell.episodes,
-                cell.reach()
-            ));
-            cells.push(("switching".into(), area, cell));
+            cells.push(p.switching(area, &frozen.clone().into(), &eval)?);
         }
-        std::fs::write(&cells_path, serde_json::to_string_pretty(&cells)?)?;
+        std::fs::write(&cells_path, serde_json::to_string(&cells)?)?;
         p.finish("f-eval", serde_json::json!({ "cells": cells.len() }))?;
         cells
     };
@@ -573,10 +592,10 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
     let Some((_, first)) = runs.first() else {
         return Ok(md);
     };
-    for (i, (name, area, _)) in first.iter().enumerate() {
+    for (i, Evaluated { model, area, .. }) in first.iter().enumerate() {
         let cells: Vec<&Cell> = runs
             .iter()
-            .filter_map(|(_, c)| c.get(i).map(|c| &c.2))
+            .filter_map(|(_, c)| c.get(i).map(|c| &c.cell))
             .collect();
         let success: Vec<f64> = cells.iter().map(|c| c.success_pct()).collect();
         let reach: Vec<f64> = cells
@@ -584,9 +603,9 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
             .filter(|c| c.successes > 0)
             .map(|c| c.mean_reach_s)
             .collect();
-        let paper = paper_cell(name, *area).map_or("-".into(), |(s, _, _)| format!("{s:.1}"));
+        let paper = paper_cell(model, *area).map_or("-".into(), |(s, _, _)| format!("{s:.1}"));
         md += &format!(
-            "| {name} | {} | {} | {} | {paper} |\n",
+            "| {model} | {} | {} | {} | {paper} |\n",
             area.name(),
             pm(&success, 1),
             if reach.is_empty() {
@@ -621,24 +640,25 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
     Ok(md)
 }
 
-/// Issue 7's claims about Table 1, each checked on this run's cells: a model "at least as
-/// good" has the higher success rate, or the same one and a mean reach time no longer. Each
-/// row gives the success-rate difference (Wald) and the reach-time advantage (Welch) with
-/// their 95 % intervals. A claim that fails on the point estimates reads "no" only when the
-/// first model is worse beyond the noise (a success rate lower, or one not higher and a reach
-/// time longer, beyond their intervals), else "within noise"; "better than" needs a success
-/// rate higher beyond the noise, or one no lower and a reach time shorter beyond the noise.
-fn shape_checks(cells: &[Evaluated]) -> String {
-    let find = |model: &str, area: AreaKind| {
-        cells
-            .iter()
-            .find(|(m, a, _)| m == model && *a == area)
-            .map(|c| c.2)
-    };
+/// Issue 7's claims about Table 1, each checked leg by leg: both models drove the same seeded
+/// courses, so each claim compares them on the legs both drove (paired). A model "at least as
+/// good" reached the target on more of those legs, or on as many and sooner on average over
+/// the legs both reached. Each row gives the success-rate difference and the reach-time
+/// advantage with their 95 % intervals over the paired legs. A model falls short when it is
+/// worse by more than a margin (`reproduce.margin-pp`, `margin-s`) beyond the noise: a success
+/// rate lower, or one not higher and a reach time longer. A claim that fails on the point
+/// estimates reads "no" only when the model falls short, else "within margin". "Better than"
+/// needs one measure better beyond the noise and the other not short: a success rate higher
+/// beyond the noise with the reach time no longer than the margin beyond it, or a reach time
+/// shorter beyond the noise with the success rate no lower than the margin beyond it; else it
+/// reads "no" when the model falls short and "not shown" when it does not.
+fn shape_checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> String {
+    let find =
+        |model: &str, area: AreaKind| cells.iter().find(|c| c.model == model && c.area == area);
     let best_single = |area: AreaKind| {
         ["general", "FTM", "RTM"]
             .into_iter()
-            .filter_map(|m| find(m, area).map(|c| (m, c)))
+            .filter_map(|m| find(m, area).map(|c| (m, c.cell)))
             .max_by(|(_, a), (_, b)| rank(a).total_cmp(&rank(b)))
     };
     let mut claims = vec![
@@ -651,42 +671,46 @@ fn shape_checks(cells: &[Evaluated]) -> String {
         }
     }
     claims.push(("switching", "general", AreaKind::Mixed, true));
-    let mut md = String::from(
-        "\n## Shape checks (issue 7)\n\n| claim | success % | reach s | success difference, pp (95 % CI) | reach-time advantage, s (95 % CI) | holds |\n|---|---:|---:|---:|---:|:---:|\n",
+    let (margin_pp, margin_s) = margins;
+    let mut md = format!(
+        "\n## Shape checks (issue 7)\n\nEach claim compares the two models on the legs both drove (same seed, env and leg of the evaluation course). \"At least as good\" reads \"no\" only when the first model falls short by more than {margin_pp} pp of success or {margin_s} s of reach time beyond the noise (`reproduce.margin-pp`, `margin-s`).\n\n| claim | paired legs | success % | reach s, legs both reached | success difference, pp (95 % CI) | reach-time advantage, s (95 % CI) | holds |\n|---|---:|---:|---:|---:|---:|:---:|\n",
     );
     for (a, b, area, strictly) in claims {
         let (Some(x), Some(y)) = (find(a, area), find(b, area)) else {
             continue;
         };
-        let (d, half) = success_difference(&x, &y);
-        let (faster, faster_half) = reach_advantage(&x, &y);
+        let c = Paired::of(&x.legs, &y.legs, decision_dt);
+        let ((d, half), (faster, faster_half)) = (c.difference, c.faster);
+        // Short by more than the margins beyond the noise, on success and on reach time.
+        let (short_success, short_reach) =
+            (d + half < -margin_pp, faster + faster_half < -margin_s);
         let holds = if strictly {
-            d - half > 0.0 || (d >= 0.0 && faster - faster_half > 0.0)
+            (d - half > 0.0 && !short_reach) || (faster - faster_half > 0.0 && !short_success)
         } else {
-            rank(&x) >= rank(&y)
+            d > 0.0 || (d == 0.0 && faster >= 0.0)
         };
-        // Worse beyond the noise: a lower success rate, or one not higher and a longer
-        // reach time.
-        let worse = d + half < 0.0 || (d - half <= 0.0 && faster + faster_half < 0.0);
-        let verdict = match (holds, worse) {
-            (true, _) => "yes",
-            (false, false) => "within noise",
-            (false, true) => "no",
+        let short = short_success || (d - half <= 0.0 && short_reach);
+        let verdict = match (holds, short, strictly) {
+            (true, _, _) => "yes",
+            (false, true, _) => "no",
+            (false, false, false) => "within margin",
+            (false, false, true) => "not shown",
         };
-        let reach = if faster_half.is_finite() {
-            format!("{faster:+.2} ± {faster_half:.2}")
+        let (reach, advantage) = if c.reached_by_both > 0 {
+            (
+                format!("{:.2} vs {:.2}", c.reach[0], c.reach[1]),
+                format!("{faster:+.2} ± {faster_half:.2}"),
+            )
         } else {
-            "-".into()
+            ("-".into(), "-".into())
         };
         md += &format!(
-            "| {a} {} {b} on {} | {:.1} vs {:.1} | {} vs {} | {d:+.1} ± {half:.1} | {reach} | {} |\n",
+            "| {a} {} {b} on {} | {} | {:.1} vs {:.1} | {reach} | {d:+.1} ± {half:.1} | {advantage} | {verdict} |\n",
             if strictly { "better than" } else { "≥" },
             area.name(),
-            x.success_pct(),
-            y.success_pct(),
-            x.reach(),
-            y.reach(),
-            verdict
+            c.legs,
+            c.success[0],
+            c.success[1],
         );
     }
     md
@@ -697,28 +721,54 @@ fn rank(c: &Cell) -> f64 {
     c.success_pct() * 1e3 - c.mean_reach_s.min(999.0)
 }
 
-/// Success-rate difference `x − y` in percentage points and the half-width of its 95 % Wald
-/// interval.
-fn success_difference(x: &Cell, y: &Cell) -> (f64, f64) {
-    let p = |c: &Cell| c.successes as f64 / c.episodes.max(1) as f64;
-    let var = |c: &Cell| p(c) * (1.0 - p(c)) / c.episodes.max(1) as f64;
-    (
-        100.0 * (p(x) - p(y)),
-        100.0 * 1.96 * (var(x) + var(y)).sqrt(),
-    )
+/// Two models `x` and `y` compared on the legs both drove (same part, env and leg index).
+#[derive(Debug)]
+struct Paired {
+    legs: usize,
+    /// Success % of `x` and of `y` on those legs.
+    success: [f64; 2],
+    /// Legs both reached, and `x`'s and `y`'s mean reach time on them, seconds.
+    reached_by_both: usize,
+    reach: [f64; 2],
+    /// `x`'s success rate minus `y`'s, percentage points, and the half-width of its 95 %
+    /// interval (Student's t over the per-leg differences).
+    difference: (f64, f64),
+    /// How much sooner `x` reached the target than `y` on the legs both reached, seconds,
+    /// and the half-width of its 95 % interval.
+    faster: (f64, f64),
 }
 
-/// How much shorter `x`'s mean reach time is than `y`'s, seconds, and the half-width of its
-/// 95 % interval (Welch, normal quantile); undecided (0 ± ∞) unless both have successes.
-fn reach_advantage(x: &Cell, y: &Cell) -> (f64, f64) {
-    if x.successes == 0 || y.successes == 0 {
-        return (0.0, f64::INFINITY);
+impl Paired {
+    fn of(x: &Legs, y: &Legs, decision_dt: f64) -> Self {
+        let pairs: Vec<(Option<u32>, Option<u32>)> = x
+            .iter()
+            .zip(y)
+            .flat_map(|(px, py)| px.iter().zip(py))
+            .flat_map(|(ex, ey)| ex.iter().copied().zip(ey.iter().copied()))
+            .collect();
+        let pct = |o: Option<u32>| if o.is_some() { 100.0 } else { 0.0 };
+        let differences: Vec<f64> = pairs.iter().map(|&(a, b)| pct(a) - pct(b)).collect();
+        let both: Vec<[f64; 2]> = pairs
+            .iter()
+            .filter_map(|&(a, b)| Some([a? as f64 * decision_dt, b? as f64 * decision_dt]))
+            .collect();
+        let mean = |xs: &mut dyn Iterator<Item = f64>, n: usize| xs.sum::<f64>() / n.max(1) as f64;
+        let sooner: Vec<f64> = both.iter().map(|[a, b]| b - a).collect();
+        Self {
+            legs: pairs.len(),
+            success: [
+                mean(&mut pairs.iter().map(|p| pct(p.0)), pairs.len()),
+                mean(&mut pairs.iter().map(|p| pct(p.1)), pairs.len()),
+            ],
+            reached_by_both: both.len(),
+            reach: [
+                mean(&mut both.iter().map(|b| b[0]), both.len()),
+                mean(&mut both.iter().map(|b| b[1]), both.len()),
+            ],
+            difference: mean_ci(&differences),
+            faster: mean_ci(&sooner),
+        }
     }
-    let var = |c: &Cell| c.std_reach_s.powi(2) / c.successes as f64;
-    (
-        y.mean_reach_s - x.mean_reach_s,
-        1.96 * (var(x) + var(y)).sqrt(),
-    )
 }
 
 /// The paper's Table 1 cell for `model` in `area`, if the paper has one.
@@ -729,30 +779,7 @@ fn paper_cell(model: &str, area: AreaKind) -> Option<PaperCell> {
         .and_then(|(_, a)| a.get(area.code() as usize).copied())
 }
 
-/// Pools evaluation parts: counts add, reach-time moments combine exactly.
-fn merge(parts: &[Cell]) -> Cell {
-    let episodes = parts.iter().map(|c| c.episodes).sum();
-    let successes: u64 = parts.iter().map(|c| c.successes).sum();
-    let n = successes.max(1) as f64;
-    let mean = parts
-        .iter()
-        .map(|c| c.mean_reach_s * c.successes as f64)
-        .sum::<f64>()
-        / n;
-    let second = parts
-        .iter()
-        .map(|c| (c.std_reach_s.powi(2) + c.mean_reach_s.powi(2)) * c.successes as f64)
-        .sum::<f64>()
-        / n;
-    Cell {
-        episodes,
-        successes,
-        mean_reach_s: mean,
-        std_reach_s: (second - mean * mean).max(0.0).sqrt(),
-    }
-}
-
-fn report(p: &Pipeline, cells: &[(String, AreaKind, Cell)]) -> anyhow::Result<String> {
+fn report(p: &Pipeline, cells: &[Evaluated]) -> anyhow::Result<String> {
     let mut md = String::from("# lavatube reproduce\n\n");
     md += "The paper's pipeline (SPEC S6-S8) regenerated by `lavatube reproduce`; the resolved \
            config is `config.toml` beside this report.\n\n## Table 1: success rate and reach time\n\n";
@@ -765,19 +792,22 @@ fn report(p: &Pipeline, cells: &[(String, AreaKind, Cell)]) -> anyhow::Result<St
         r.eval_roughness_scale.unwrap_or(trained)
     );
     md += "| model | area | ours: success % (episodes) | ours: reach s, mean (std) | paper: success % | paper: reach s |\n|---|---|---:|---:|---:|---:|\n";
-    for (name, area, cell) in cells {
-        let (ps, pr) = paper_cell(name, *area).map_or(("-".into(), "-".into()), |(s, m, sd)| {
+    for Evaluated {
+        model, area, cell, ..
+    } in cells
+    {
+        let (ps, pr) = paper_cell(model, *area).map_or(("-".into(), "-".into()), |(s, m, sd)| {
             (format!("{s:.1}"), format!("{m:.2} ({sd:.2})"))
         });
         md += &format!(
-            "| {name} | {} | {:.1} ({}) | {} | {ps} | {pr} |\n",
+            "| {model} | {} | {:.1} ({}) | {} | {ps} | {pr} |\n",
             area.name(),
             cell.success_pct(),
             cell.episodes,
             cell.reach()
         );
     }
-    md += &shape_checks(cells);
+    md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
     let analysis = p.stage_dir("d-analysis");
     let table3 = std::fs::read_to_string(analysis.join("results.md"))
         .with_context(|| format!("cannot read {}", analysis.join("results.md").display()))?;
@@ -810,21 +840,36 @@ mod tests {
     use super::*;
 
     #[test]
-    fn episodes_and_reach_times_come_from_the_telemetry() {
+    fn legs_and_reach_times_come_from_the_telemetry() {
         let dir = tempfile::tempdir().expect("tempdir");
         let csv = dir.path().join("t.csv");
-        // env 0: success after 3 ticks, then a truncation after 2; env 1: success after 1.
+        // env 0: success after 2 ticks, then a truncation after 2, then one leg unfinished;
+        // env 1: success after 1.
         std::fs::write(
             &csv,
-            "env,tick,terminated,truncated,success\n\
-             0,0,false,false,false\n1,0,true,false,true\n\
-             0,1,false,false,false\n0,2,true,false,true\n\
-             0,3,false,false,false\n0,4,false,true,false\n",
+            "env,episode,tick,terminated,truncated,success\n\
+             0,0,0,false,false,false\n1,0,0,true,false,true\n\
+             0,0,1,true,false,true\n0,1,2,false,false,false\n\
+             0,1,3,false,true,false\n0,2,4,false,false,false\n",
         )
         .expect("write");
-        let c = episodes_in(&csv, 0.1).expect("parse");
+        let legs = legs_in(&csv).expect("parse");
+        assert_eq!(legs, vec![vec![Some(2), None], vec![Some(1)]]);
+        // Reach times {0.2, 0.1} s of 3 legs.
+        let c = Cell::of(&vec![legs], 0.1);
         assert_eq!((c.episodes, c.successes), (3, 2));
-        assert!((c.mean_reach_s - 0.2).abs() < 1e-12 && (c.std_reach_s - 0.1).abs() < 1e-12);
+        assert!((c.mean_reach_s - 0.15).abs() < 1e-12 && (c.std_reach_s - 0.05).abs() < 1e-12);
+        // A sim that restarted starts its legs again: those rows cannot pair.
+        std::fs::write(
+            &csv,
+            "env,episode,tick,terminated,truncated,success\n0,0,0,true,false,true\n0,0,0,false,false,false\n",
+        )
+        .expect("write");
+        let e = legs_in(&csv).expect_err("restart");
+        assert!(
+            e.to_string().contains("env 0 is on leg 0 after ending 1"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -837,75 +882,124 @@ mod tests {
     }
 
     #[test]
-    fn merged_cells_equal_one_pooled_cell() {
-        let a = Cell {
-            episodes: 3,
-            successes: 2,
-            mean_reach_s: 1.0,
-            std_reach_s: 0.5,
-        };
-        let b = Cell {
-            episodes: 2,
-            successes: 1,
-            mean_reach_s: 4.0,
-            std_reach_s: 0.0,
-        };
-        // Pooled reach times {0.5, 1.5, 4.0}: mean 2, variance (2.25 + 0.25 + 4) / 3.
-        let m = merge(&[a, b]);
-        assert_eq!((m.episodes, m.successes), (5, 3));
-        assert!((m.mean_reach_s - 2.0).abs() < 1e-12);
-        assert!((m.std_reach_s - (6.5f64 / 3.0).sqrt()).abs() < 1e-12);
+    fn paired_legs_are_the_legs_both_models_drove() {
+        // Part 0: env 0 drove 3 legs under x, 2 under y; env 1 one leg each. Part 1 only x.
+        let x: Legs = vec![
+            vec![vec![Some(10), None, Some(4)], vec![Some(6)]],
+            vec![vec![None]],
+        ];
+        let y: Legs = vec![vec![vec![Some(12), Some(5)], vec![Some(8)]]];
+        let c = Paired::of(&x, &y, 0.1);
+        assert_eq!((c.legs, c.reached_by_both), (3, 2));
+        assert_eq!(c.success, [200.0 / 3.0, 100.0]);
+        // Reach times (1.0, 1.2) and (0.6, 0.8): x 0.2 s sooner on both legs, so ± 0.
+        assert!((c.reach[0] - 0.8).abs() < 1e-12 && (c.reach[1] - 1.0).abs() < 1e-12);
+        assert!((c.faster.0 - 0.2).abs() < 1e-12 && c.faster.1.abs() < 1e-12);
+        // Differences {0, -100, 0} pp: mean -33.3, sd 57.7, t(2) = 4.303.
+        let (d, half) = c.difference;
+        assert!((d + 100.0 / 3.0).abs() < 1e-9);
+        assert!((half - 4.303 * (10_000.0f64 / 3.0).sqrt() / 3f64.sqrt()).abs() < 1e-9);
     }
 
     #[test]
-    fn shape_checks_rank_by_success_then_reach_time() {
-        let cell = |episodes, successes, mean_reach_s| Cell {
-            episodes,
-            successes,
-            mean_reach_s,
-            std_reach_s: 2.0,
+    fn shape_checks_compare_the_models_leg_by_leg() {
+        // One part, one env, `n` legs: leg i reached in `ticks(i)` ticks, or failed.
+        let legs = |n: usize, ticks: &dyn Fn(usize) -> Option<u32>| -> Legs {
+            vec![vec![(0..n).map(ticks).collect()]]
         };
+        let eval = |model: &str, area: AreaKind, legs: Legs| Evaluated {
+            model: model.into(),
+            area,
+            cell: Cell::of(&legs, 0.1),
+            legs,
+        };
+        let base = legs(100, &|i| (i % 10 != 0).then_some(30 + (i % 7) as u32));
         let mut cells = Vec::new();
         for area in EVAL_AREAS {
-            cells.push(("general".to_string(), area, cell(100, 90, 5.0)));
-            cells.push(("FTM".to_string(), area, cell(100, 90, 4.0)));
-            cells.push(("RTM".to_string(), area, cell(100, 95, 6.0)));
-            cells.push(("switching".to_string(), area, cell(100, 95, 6.0)));
+            for model in ["general", "FTM", "RTM", "switching"] {
+                cells.push(eval(model, area, base.clone()));
+            }
         }
-        let md = shape_checks(&cells);
-        let row = |claim| row_of(&md, claim);
-        // Same success, faster: at least as good. Best single on flat is RTM (95 %).
-        assert!(row("FTM ≥ general on flat").ends_with("| yes |"));
-        assert!(row("switching ≥ RTM on flat").ends_with("| yes |"));
-        // 95 % vs 90 % of 100 each: +5.0 pp ± 1.96·sqrt(.95·.05/100 + .9·.1/100) = ±7.3,
-        // which holds 0; and 1 s slower, beyond ±1.96·sqrt(4/95 + 4/90) = ±0.58 s.
+        let checks = |cells: &[Evaluated]| shape_checks(cells, 0.1, (0.0, 0.0));
+        let md = checks(&cells);
+        // Identical legs (mean reach 32.94 ticks): at least as good, and not better.
         assert!(
-            row("switching better than general on mixed")
-                .ends_with("| +5.0 ± 7.3 | -1.00 ± 0.58 | no |")
+            row_of(&md, "FTM ≥ general on flat").ends_with(
+                "| 100 | 90.0 vs 90.0 | 3.29 vs 3.29 | +0.0 ± 0.0 | +0.00 ± 0.00 | yes |"
+            ),
+            "{md}"
         );
-        // 0.5 s slower with the same success: inside the noise.
-        cells[11].2 = cell(100, 95, 6.5);
+        assert!(row_of(&md, "switching better than general on mixed").ends_with("| not shown |"));
+        // Ties go to the last of the single models, RTM. One tick slower on every leg
+        // reached: worse beyond the noise.
+        cells[3] = eval(
+            "switching",
+            AreaKind::Flat,
+            legs(100, &|i| (i % 10 != 0).then_some(31 + (i % 7) as u32)),
+        );
         assert!(
-            row_of(&shape_checks(&cells), "switching ≥ RTM on mixed").ends_with("| within noise |")
+            row_of(&checks(&cells), "switching ≥ RTM on flat")
+                .ends_with("| +0.0 ± 0.0 | -0.10 ± 0.00 | no |")
         );
-        cells[11].2 = cell(1000, 800, 6.0);
-        assert!(row_of(&shape_checks(&cells), "switching ≥ RTM on mixed").ends_with("| no |"));
-        // 0.2 pp lower success (inside ±1.2) but 0.3 s faster: not worse beyond the noise.
-        cells[11].2 = cell(1000, 980, 5.7);
-        cells[8].2 = cell(1000, 982, 6.0);
-        assert!(
-            row_of(&shape_checks(&cells), "switching ≥ general on mixed")
-                .ends_with("| -0.2 ± 1.2 | +0.30 ± 0.18 | within noise |")
-        );
-        cells[11].2 = cell(1000, 999, 6.0);
-        cells[8].2 = cell(1000, 900, 6.0);
+        // Inside a 0.2 s margin it is not a "no".
         assert!(
             row_of(
-                &shape_checks(&cells),
-                "switching better than general on mixed"
+                &shape_checks(&cells, 0.1, (1.0, 0.2)),
+                "switching ≥ RTM on flat"
             )
-            .ends_with("| yes |")
+            .ends_with("| within margin |")
         );
+        // One leg of 100 lost: -1 pp, sd 10, so ± 1.96: within the noise.
+        cells[7] = eval(
+            "switching",
+            AreaKind::Rough,
+            legs(100, &|i| {
+                (i % 10 != 0 && i != 1).then_some(30 + (i % 7) as u32)
+            }),
+        );
+        assert!(
+            row_of(&checks(&cells), "switching ≥ RTM on rough")
+                .ends_with("| -1.0 ± 2.0 | +0.00 ± 0.00 | within margin |")
+        );
+        // Ten more legs reached on the mixed course: +10 pp ± 5.9, better beyond the noise.
+        cells[11] = eval(
+            "switching",
+            AreaKind::Mixed,
+            legs(100, &|i| Some(30 + (i % 7) as u32)),
+        );
+        assert!(
+            row_of(&checks(&cells), "switching better than general on mixed")
+                .ends_with("| +10.0 ± 5.9 | +0.00 ± 0.00 | yes |")
+        );
+    }
+
+    #[test]
+    fn better_means_one_measure_better_and_the_other_not_short() {
+        let legs = |ticks: &dyn Fn(usize) -> Option<u32>| -> Legs {
+            vec![vec![(0..200).map(ticks).collect()]]
+        };
+        let eval = |model: &str, legs: Legs| Evaluated {
+            model: model.into(),
+            area: AreaKind::Mixed,
+            cell: Cell::of(&legs, 0.1),
+            legs,
+        };
+        let general = eval("general", legs(&|i| Some(40 + (i % 5) as u32)));
+        // Six legs of 200 lost (-3.0 pp, sd 17.1, ± 2.4) but 0.3 s sooner on the rest.
+        let faster = eval(
+            "switching",
+            legs(&|i| (i >= 6).then_some(37 + (i % 5) as u32)),
+        );
+        let row = |margins| {
+            row_of(
+                &shape_checks(&[general.clone(), faster.clone()], 0.1, margins),
+                "switching better than general on mixed",
+            )
+        };
+        // Faster beyond the noise, and the success loss not beyond a 1 pp margin.
+        assert!(row((1.0, 0.05)).ends_with("| -3.0 ± 2.4 | +0.30 ± 0.00 | yes |"));
+        // Without a margin, the loss is beyond the noise: short.
+        assert!(row((0.0, 0.05)).ends_with("| no |"));
     }
 
     fn row_of(md: &str, claim: &str) -> String {
