@@ -615,6 +615,56 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
             }
         );
     }
+    md += "\n## Shape checks (issue 7)\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |\n|---|---:|---:|---|\n";
+    let per_seed: Vec<(u64, Vec<Check>)> = runs
+        .iter()
+        .map(|(p, cells)| {
+            let r = &p.base.reproduce;
+            (
+                p.base.run.seed,
+                checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s)),
+            )
+        })
+        .collect();
+    for key in per_seed
+        .first()
+        .map(|(_, c)| c)
+        .into_iter()
+        .flatten()
+        .map(|c| &c.key)
+    {
+        let of_key: Vec<(u64, &Check)> = per_seed
+            .iter()
+            .filter_map(|(seed, cs)| cs.iter().find(|c| &c.key == key).map(|c| (*seed, c)))
+            .collect();
+        let d: Vec<f64> = of_key.iter().map(|(_, c)| c.paired.difference.0).collect();
+        let faster: Vec<f64> = of_key
+            .iter()
+            .filter(|(_, c)| c.paired.reached_by_both > 0)
+            .map(|(_, c)| c.paired.faster.0)
+            .collect();
+        let verdicts: Vec<String> = of_key
+            .iter()
+            .map(|(seed, c)| {
+                let versus = if c.claim == *key {
+                    String::new()
+                } else {
+                    format!(" ({})", c.claim)
+                };
+                format!("seed {seed}: {}{versus}", c.verdict)
+            })
+            .collect();
+        md += &format!(
+            "| {key} | {} | {} | {} |\n",
+            pm(&d, 1),
+            if faster.is_empty() {
+                "-".into()
+            } else {
+                pm(&faster, 2)
+            },
+            verdicts.join("; ")
+        );
+    }
     md +=
         "\n## Table 3: accuracy by window\n\n| window | accuracy % | paper % |\n|---:|---:|---:|\n";
     let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> = Default::default();
@@ -653,6 +703,47 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
 /// shorter beyond the noise with the success rate no lower than the margin beyond it; else it
 /// reads "no" when the model falls short and "not shown" when it does not.
 fn shape_checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> String {
+    let (margin_pp, margin_s) = margins;
+    let mut md = format!(
+        "\n## Shape checks (issue 7)\n\nEach claim compares the two models on the legs both drove (same seed, env and leg of the evaluation course). \"At least as good\" reads \"no\" only when the first model falls short by more than {margin_pp} pp of success or {margin_s} s of reach time beyond the noise (`reproduce.margin-pp`, `margin-s`).\n\n| claim | paired legs | success % | reach s, legs both reached | success difference, pp (95 % CI) | reach-time advantage, s (95 % CI) | holds |\n|---|---:|---:|---:|---:|---:|:---:|\n",
+    );
+    for Check {
+        claim,
+        paired: c,
+        verdict,
+        ..
+    } in checks(cells, decision_dt, margins)
+    {
+        let ((d, half), (faster, faster_half)) = (c.difference, c.faster);
+        let (reach, advantage) = if c.reached_by_both > 0 {
+            (
+                format!("{:.2} vs {:.2}", c.reach[0], c.reach[1]),
+                format!("{faster:+.2} ± {faster_half:.2}"),
+            )
+        } else {
+            ("-".into(), "-".into())
+        };
+        md += &format!(
+            "| {claim} | {} | {:.1} vs {:.1} | {reach} | {d:+.1} ± {half:.1} | {advantage} | {verdict} |\n",
+            c.legs, c.success[0], c.success[1],
+        );
+    }
+    md
+}
+
+/// One of issue 7's claims, checked on one seed's cells.
+struct Check {
+    /// E.g. "switching ≥ RTM on rough".
+    claim: String,
+    /// The claim with the best single model unnamed ("switching ≥ the best single model on
+    /// rough"), which lines seeds up when their best single models differ.
+    key: String,
+    paired: Paired,
+    verdict: &'static str,
+}
+
+/// Issue 7's claims on `cells` (see [`shape_checks`]).
+fn checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> Vec<Check> {
     let find =
         |model: &str, area: AreaKind| cells.iter().find(|c| c.model == model && c.area == area);
     let best_single = |area: AreaKind| {
@@ -662,20 +753,18 @@ fn shape_checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> S
             .max_by(|(_, a), (_, b)| rank(a).total_cmp(&rank(b)))
     };
     let mut claims = vec![
-        ("FTM", "general", AreaKind::Flat, false),
-        ("RTM", "general", AreaKind::Rough, false),
+        ("FTM", "general", AreaKind::Flat, false, false),
+        ("RTM", "general", AreaKind::Rough, false, false),
     ];
     for area in EVAL_AREAS {
         if let Some((m, _)) = best_single(area) {
-            claims.push(("switching", m, area, false));
+            claims.push(("switching", m, area, false, true));
         }
     }
-    claims.push(("switching", "general", AreaKind::Mixed, true));
+    claims.push(("switching", "general", AreaKind::Mixed, true, false));
     let (margin_pp, margin_s) = margins;
-    let mut md = format!(
-        "\n## Shape checks (issue 7)\n\nEach claim compares the two models on the legs both drove (same seed, env and leg of the evaluation course). \"At least as good\" reads \"no\" only when the first model falls short by more than {margin_pp} pp of success or {margin_s} s of reach time beyond the noise (`reproduce.margin-pp`, `margin-s`).\n\n| claim | paired legs | success % | reach s, legs both reached | success difference, pp (95 % CI) | reach-time advantage, s (95 % CI) | holds |\n|---|---:|---:|---:|---:|---:|:---:|\n",
-    );
-    for (a, b, area, strictly) in claims {
+    let mut out = Vec::new();
+    for (a, b, area, strictly, best) in claims {
         let (Some(x), Some(y)) = (find(a, area), find(b, area)) else {
             continue;
         };
@@ -696,24 +785,20 @@ fn shape_checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> S
             (false, false, false) => "within margin",
             (false, false, true) => "not shown",
         };
-        let (reach, advantage) = if c.reached_by_both > 0 {
-            (
-                format!("{:.2} vs {:.2}", c.reach[0], c.reach[1]),
-                format!("{faster:+.2} ± {faster_half:.2}"),
-            )
-        } else {
-            ("-".into(), "-".into())
-        };
-        md += &format!(
-            "| {a} {} {b} on {} | {} | {:.1} vs {:.1} | {reach} | {d:+.1} ± {half:.1} | {advantage} | {verdict} |\n",
-            if strictly { "better than" } else { "≥" },
-            area.name(),
-            c.legs,
-            c.success[0],
-            c.success[1],
-        );
+        let relation = if strictly { "better than" } else { "≥" };
+        let claim = |b: &str| format!("{a} {relation} {b} on {}", area.name());
+        out.push(Check {
+            claim: claim(b),
+            key: if best {
+                claim("the best single model")
+            } else {
+                claim(b)
+            },
+            paired: c,
+            verdict,
+        });
     }
-    md
+    out
 }
 
 /// Orders cells by success rate, then by shorter mean reach time.
@@ -1000,6 +1085,60 @@ mod tests {
         assert!(row((1.0, 0.05)).ends_with("| -3.0 ± 2.4 | +0.30 ± 0.00 | yes |"));
         // Without a margin, the loss is beyond the noise: short.
         assert!(row((0.0, 0.05)).ends_with("| no |"));
+    }
+
+    #[test]
+    fn the_seeds_report_lines_up_each_claim_across_seeds() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let legs = |ticks: u32| -> Legs { vec![vec![vec![Some(ticks); 50]]] };
+        // Seed 1's best single model on rough ground is RTM, seed 2's FTM; switching drives
+        // like RTM in both.
+        let run = |seed: u64, ftm_rough: u32| {
+            let out = dir.path().join(format!("seed-{seed}"));
+            std::fs::create_dir_all(out.join("d-analysis")).expect("mkdir");
+            std::fs::write(
+                out.join("d-analysis/results.json"),
+                r#"{"windows": [{"window": 70, "accuracy": 0.97}]}"#,
+            )
+            .expect("results");
+            let mut base = Config::default();
+            base.run.seed = seed;
+            let mut cells = Vec::new();
+            for area in EVAL_AREAS {
+                for (model, ticks) in [("general", 40), ("FTM", 40), ("RTM", 35), ("switching", 35)]
+                {
+                    let ticks = if model == "FTM" && area == AreaKind::Rough {
+                        ftm_rough
+                    } else {
+                        ticks
+                    };
+                    cells.push(Evaluated {
+                        model: model.into(),
+                        area,
+                        cell: Cell::of(&legs(ticks), 0.1),
+                        legs: legs(ticks),
+                    });
+                }
+            }
+            let p = Pipeline {
+                base,
+                out,
+                quiet: true,
+            };
+            (p, cells)
+        };
+        let md = seeds_report(&[run(1, 40), run(2, 34)]).expect("report");
+        let row = row_of(&md, "switching ≥ the best single model on rough");
+        // Seed 1: like RTM, 0 s; seed 2: 0.1 s behind FTM on every leg; t(1) = 12.706.
+        assert!(row.contains("| 0.0 ± 0.0 | -0.05 ± 0.64 |"), "{row}");
+        assert!(
+            row.ends_with(
+                "| seed 1: yes (switching ≥ RTM on rough); seed 2: no (switching ≥ FTM on rough) |"
+            ),
+            "{row}"
+        );
+        assert!(row_of(&md, "RTM ≥ general on rough").ends_with("| seed 1: yes; seed 2: yes |"));
+        assert!(row_of(&md, "70").contains("97.00"), "{md}");
     }
 
     fn row_of(md: &str, claim: &str) -> String {
