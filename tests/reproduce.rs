@@ -78,6 +78,7 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         "d-analysis/results.json\"",
         "refit-every = 0",
         "episodes = \"course\"",
+        "feature = \"log-std\"",
     ] {
         assert!(switch.contains(line), "{line}: {switch}");
     }

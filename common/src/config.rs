@@ -707,13 +707,52 @@ pub struct EstimatorConfig {
     /// classes, so it needs every terrain in its pool: a run on one terrain would split it
     /// into two. Relative to the config file. Default none.
     pub model: Option<PathBuf>,
+    /// What the mixture is fitted on, offline and online: "std", each window's std of
+    /// sin θx (SPEC S7), or "log-std", its natural log (interpretation). Default "std".
+    pub feature: MixtureFeature,
+}
+
+/// The value of a window the terrain mixture sees (SPEC S7: the window's std of sin θx).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum MixtureFeature {
+    /// The std itself, as the paper.
+    #[default]
+    Std,
+    /// Its natural log, floored at [`MixtureFeature::LOG_FLOOR`]. A window's std is
+    /// positive and skewed to the right, most on rough ground, where a few bumpy windows
+    /// stretch one Gaussian so wide that it takes in the upper half of flat ground; in log
+    /// space both terrains are closer to Gaussian.
+    LogStd,
+}
+
+impl MixtureFeature {
+    /// The std below which `log-std` reads the floor (a robot standing perfectly still).
+    pub const LOG_FLOOR: f64 = 1e-6;
+
+    /// The feature of a window whose std of sin θx is `std`.
+    pub fn of(self, std: f64) -> f64 {
+        match self {
+            MixtureFeature::Std => std,
+            MixtureFeature::LogStd => std.max(Self::LOG_FLOOR).ln(),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MixtureFeature::Std => "std",
+            MixtureFeature::LogStd => "log-std",
+        }
+    }
 }
 
 /// A terrain mixture fitted offline, as [`EstimatorConfig::model`] holds it: components by
-/// ascending mean (0 = flat).
+/// ascending mean (0 = flat), over `feature` (files written before it existed: `std`).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
 pub struct OfflineMixture {
     pub window: usize,
+    #[serde(default)]
+    pub feature: MixtureFeature,
     pub weights: Vec<f64>,
     pub means: Vec<f64>,
     pub stds: Vec<f64>,
@@ -747,6 +786,13 @@ impl EstimatorConfig {
                     self.online_window
                 ))
             })?;
+        if m.feature != self.feature {
+            return Err(bad(format!(
+                "its fit is over `{}`, but estimator.feature is `{}`",
+                m.feature.name(),
+                self.feature.name()
+            )));
+        }
         let k = self.components;
         if [&m.weights, &m.means, &m.stds].iter().any(|v| v.len() != k) {
             return Err(bad(format!(
@@ -789,6 +835,7 @@ impl Default for EstimatorConfig {
             stay_prob: 0.98,
             min_speed: 0.02,
             model: None,
+            feature: MixtureFeature::Std,
         }
     }
 }
@@ -1312,6 +1359,16 @@ mod tests {
             "{err}"
         );
         e.online_window = 70;
+        // A fit over log std is refused by a config that classifies the std itself.
+        write(&[fit(70, 0.03).replace(r#""n": 9"#, r#""feature": "log-std", "n": 9"#)]);
+        let err = e.offline_mixture().expect_err("other feature").to_string();
+        assert!(
+            err.contains("over `log-std`, but estimator.feature is `std`"),
+            "{err}"
+        );
+        e.feature = MixtureFeature::LogStd;
+        assert!(e.offline_mixture().expect("read").is_some());
+        e.feature = MixtureFeature::Std;
         write(&[fit(70, 0.0)]);
         let err = e.offline_mixture().expect_err("zero std").to_string();
         assert!(err.contains("std that is not positive"), "{err}");
@@ -1389,6 +1446,13 @@ mod tests {
             e.to_string().contains("chained") && e.to_string().contains("course"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn the_mixture_feature_is_the_std_or_its_floored_log() {
+        assert_eq!(MixtureFeature::Std.of(0.05), 0.05);
+        assert_eq!(MixtureFeature::LogStd.of(std::f64::consts::E), 1.0);
+        assert_eq!(MixtureFeature::LogStd.of(0.0), (1e-6f64).ln());
     }
 
     #[test]

@@ -13,6 +13,7 @@
 use crate::gmm::{self, FitOptions, Gmm};
 use crate::rolling::{Ddof, rolling_path, rolling_std};
 use crate::{EstimatorError, Result};
+use common::config::MixtureFeature;
 use common::{AreaKind, TelemetryRow};
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -213,6 +214,8 @@ pub fn area_of_class(class: usize) -> AreaKind {
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct WindowResult {
     pub window: usize,
+    /// What the mixture was fitted on (`estimator.feature`); its parameters are over it.
+    pub feature: MixtureFeature,
     /// Pooled values fitted (both areas).
     pub n: usize,
     /// Windows left out as stationary (`estimator.min-speed`).
@@ -244,21 +247,42 @@ pub fn score(model: &Gmm, values: &[f64], areas: &[AreaKind]) -> (f64, Vec<Vec<u
     (correct as f64 / values.len().max(1) as f64, confusion)
 }
 
-/// Fits and scores one window size (SPEC S7 steps 2–4). The labels are used only by `score`,
-/// after the fit.
+impl WindowResult {
+    /// Each component's mean and std in units of the window std, for Table 3: the fit's own
+    /// over `std`; over `log-std`, those of the log-normal it stands for.
+    pub fn components_in_std(&self) -> Vec<(f64, f64)> {
+        self.means
+            .iter()
+            .zip(&self.stds)
+            .map(|(&m, &s)| match self.feature {
+                MixtureFeature::Std => (m, s),
+                MixtureFeature::LogStd => {
+                    let mean = (m + 0.5 * s * s).exp();
+                    (mean, mean * (s * s).exp_m1().sqrt())
+                }
+            })
+            .collect()
+    }
+}
+
+/// Fits and scores one window size (SPEC S7 steps 2–4) over `feature` of each window's std.
+/// The labels are used only by `score`, after the fit.
 pub fn analyze_window(
     series: &[Series],
     window: usize,
     opts: &FitOptions,
     min_step_travel: f64,
+    feature: MixtureFeature,
 ) -> Result<WindowResult> {
     let wv = window_values(series, window, min_step_travel)?;
+    let values: Vec<f64> = wv.values.iter().map(|&v| feature.of(v)).collect();
     // SPEC S7 step 3: unsupervised, the fit sees the values only.
-    let report = gmm::fit(&wv.values, opts)?;
-    let (accuracy, confusion) = score(&report.model, &wv.values, &wv.areas);
+    let report = gmm::fit(&values, opts)?;
+    let (accuracy, confusion) = score(&report.model, &values, &wv.areas);
     let m = &report.model;
     Ok(WindowResult {
         window,
+        feature,
         n: wv.values.len(),
         stationary: wv.stationary,
         n_flat: wv.areas.iter().filter(|a| **a == AreaKind::Flat).count(),
@@ -419,6 +443,49 @@ mod tests {
         assert!((acc - 0.8).abs() < 1e-12);
         assert_eq!(area_of_class(0), Flat);
         assert_eq!(area_of_class(2), Rough);
+    }
+
+    /// Rough ground whose bumpiness varies from stretch to stretch gives window stds skewed
+    /// to the right: one Gaussian stretched over them takes in flat windows, which the fit
+    /// over log std leaves alone.
+    #[test]
+    fn a_fit_over_log_std_copes_with_skewed_rough_windows() {
+        let mut rng = common::Rng::new(3);
+        let mut rows = Vec::new();
+        for env in 0..8u32 {
+            let area = if env < 4 {
+                AreaKind::Flat
+            } else {
+                AreaKind::Rough
+            };
+            let mut amplitude = 0.02;
+            for tick in 0..600 {
+                if area == AreaKind::Rough && tick % 20 == 0 {
+                    amplitude = 0.06 * (1.3 * rng.normal()).exp();
+                }
+                rows.push(row(env, tick, area, amplitude * rng.normal()));
+            }
+        }
+        let series = split_series(&rows, 0);
+        let opts = FitOptions::from_config(&common::config::EstimatorConfig::default(), 1);
+        let fit = |feature| analyze_window(&series, 20, &opts, 0.0, feature).expect("fit");
+        let (std, log) = (fit(MixtureFeature::Std), fit(MixtureFeature::LogStd));
+        assert_eq!(
+            (std.feature, log.feature),
+            (MixtureFeature::Std, MixtureFeature::LogStd)
+        );
+        assert!(
+            log.accuracy > std.accuracy + 0.01 && log.accuracy > 0.93,
+            "log std {} vs std {}",
+            log.accuracy,
+            std.accuracy
+        );
+        // Table 3 shows the log fit's components as the log-normals they stand for.
+        let (mean, sd) = log.components_in_std()[0];
+        let (m, s) = (log.means[0], log.stds[0]);
+        assert!((mean - (m + s * s / 2.0).exp()).abs() < 1e-12);
+        assert!((sd - mean * ((s * s).exp() - 1.0).sqrt()).abs() < 1e-12);
+        assert!((0.01..0.03).contains(&mean), "flat component at {mean}");
     }
 
     #[test]

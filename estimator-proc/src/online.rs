@@ -33,7 +33,7 @@
 use crate::gmm::{self, FitOptions, Gmm};
 use crate::rolling::{Ddof, RollingPath, RollingStd};
 use crate::{EstimatorError, Result};
-use common::config::EstimatorConfig;
+use common::config::{EstimatorConfig, MixtureFeature};
 
 /// Pool values per mixture component before the first fit.
 pub const MIN_POINTS_PER_COMPONENT: usize = 50;
@@ -102,6 +102,8 @@ pub struct OnlineEstimator {
     refit_interval: u64,
     min_first_fit: usize,
     stay_prob: f64,
+    /// What the mixture sees of each window's std (`estimator.feature`).
+    feature: MixtureFeature,
     /// Path over a window below which it is stationary, metres; 0: no gate.
     min_travel: f64,
     envs: Vec<EnvState>,
@@ -130,6 +132,7 @@ impl OnlineEstimator {
             },
             min_first_fit: (MIN_POINTS_PER_COMPONENT * k).min(cfg.pool_size.max(k)),
             stay_prob: cfg.stay_prob,
+            feature: cfg.feature,
             min_travel: 0.0,
             envs: vec![
                 EnvState {
@@ -245,7 +248,7 @@ impl OnlineEstimator {
             .and_then(|p| state.travel.push(p))
             .is_none_or(|path| path >= self.min_travel);
         match (window_std, moving) {
-            (Some(s), true) => self.pool.push(s),
+            (Some(s), true) => self.pool.push(self.feature.of(s)),
             (Some(_), false) => self.stats.stationary += 1,
             (None, _) => {}
         }
@@ -277,7 +280,7 @@ impl OnlineEstimator {
         }
         // One pass of ln(w_k N_k(s)) serves both the raw posterior and the HMM emission.
         let joint = &mut self.scratch[..k];
-        let log_evidence = model.joint_log(s, joint);
+        let log_evidence = model.joint_log(self.feature.of(s), joint);
         let raw_class = argmax(joint);
         let raw_posterior = (joint[raw_class] - log_evidence).exp();
         if self.stay_prob <= 0.0 {
@@ -580,6 +583,37 @@ mod tests {
         est.reset_env(0).expect("reset");
         assert!(est.observe(0, 0.0).expect("observe").window_std.is_none());
         assert!(est.reset_env(1).is_err());
+    }
+
+    /// A mixture over log std classifies each window by the log of its std: windows of
+    /// std 0.02 and 0.08 fall to components at ln 0.02 and ln 0.08.
+    #[test]
+    fn a_log_std_model_classifies_the_log_of_each_window() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let results = dir.path().join("results.json");
+        let (flat, rough) = (0.02f64.ln(), 0.08f64.ln());
+        let fit = format!(
+            r#"{{"window": 20, "feature": "log-std", "weights": [0.5, 0.5], "means": [{flat}, {rough}], "stds": [0.3, 0.3]}}"#
+        );
+        std::fs::write(&results, format!(r#"{{"windows": [{fit}]}}"#)).expect("write");
+        let cfg = EstimatorConfig {
+            model: Some(results),
+            refit_every: 0,
+            feature: MixtureFeature::LogStd,
+            ..config(0.0)
+        };
+        let mut est = OnlineEstimator::from_config(&cfg, 2, 1).expect("estimator");
+        let mut rng = common::Rng::new(4);
+        let mut last = [None; 2];
+        for _ in 0..200 {
+            for (env, scale) in [(0, 0.02), (1, 0.08)] {
+                last[env] = est
+                    .observe(env, scale * rng.normal())
+                    .expect("observe")
+                    .class;
+            }
+        }
+        assert_eq!(last, [Some(0), Some(1)]);
     }
 
     /// SPEC S7: with `refit-every = 0` the offline model classifies throughout, so one

@@ -4,6 +4,7 @@
 use crate::analysis::{AREAS, PAPER_TABLE_3, PaperRow, WindowResult};
 use crate::evaluation::{ClassifierScore, OnlineEval};
 use crate::{EstimatorError, Result};
+use common::config::MixtureFeature;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -64,9 +65,8 @@ pub fn to_json<T: Serialize>(report: &T) -> String {
 
 /// `mean (std)` of every component, ` / `-separated (flat first).
 fn components_cell(r: &WindowResult) -> String {
-    r.means
+    r.components_in_std()
         .iter()
-        .zip(&r.stds)
         .map(|(m, s)| format!("{m:.3} ({s:.3})"))
         .collect::<Vec<_>>()
         .join(" / ")
@@ -80,13 +80,20 @@ impl AnalysisReport {
         let _ = writeln!(
             md,
             "Input `{}`: {} flat and {} rough series, first {} ticks of each dropped; rolling {} of sin θx; \
-             {}-component Gaussian mixture by EM (seed {}), components by ascending mean (first = flat).\n",
+             {}-component Gaussian mixture over {} by EM (seed {}), components by ascending mean (first = flat).\n",
             self.input,
             self.series.flat,
             self.series.rough,
             self.warmup_ticks,
             self.std,
             self.components,
+            match self.windows.first().map(|w| w.feature) {
+                Some(MixtureFeature::LogStd) => {
+                    "the log of each window's std (`estimator.feature = \"log-std\"`; each component's \
+                     mean (std) below is its log-normal's)"
+                }
+                _ => "each window's std",
+            },
             self.seed
         );
         let _ = writeln!(

@@ -8,6 +8,7 @@ use crate::report::{AnalysisReport, SeriesCount, create_dir, to_json, write_file
 use crate::{EstimatorError, figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
+use common::config::MixtureFeature;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
@@ -43,11 +44,12 @@ pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
         .windows
         .iter()
         .map(|&w| {
-            analysis::analyze_window(&series, w, &opts, gate).with_context(|| format!("window {w}"))
+            analysis::analyze_window(&series, w, &opts, gate, cfg.feature)
+                .with_context(|| format!("window {w}"))
         })
         .collect::<anyhow::Result<Vec<_>>>()?;
     create_dir(&args.out)?;
-    let figures = draw_figures(&args.out, &series, &results, &opts, gate)?;
+    let figures = draw_figures(&args.out, &series, &results, &opts, (gate, cfg.feature))?;
     let count = |a: AreaKind| series.iter().filter(|s| s.area == a).count();
     let report = AnalysisReport {
         input: path.display().to_string(),
@@ -76,7 +78,7 @@ fn draw_figures(
     series: &[Series],
     results: &[WindowResult],
     opts: &FitOptions,
-    gate: f64,
+    (gate, feature): (f64, MixtureFeature),
 ) -> anyhow::Result<Vec<String>> {
     let mut written = Vec::new();
     figures::draw_time_series(
@@ -115,7 +117,7 @@ fn draw_figures(
     for w in HEATMAP_WINDOWS {
         match results.iter().find(|r| r.window == w) {
             Some(r) => heatmaps.push(r.clone()),
-            None => match analysis::analyze_window(series, w, opts, gate) {
+            None => match analysis::analyze_window(series, w, opts, gate, feature) {
                 Ok(r) => heatmaps.push(r),
                 Err(
                     e @ (EstimatorError::NoWindows { .. } | EstimatorError::AllStationary { .. }),
