@@ -9,8 +9,10 @@
 //! e. `e-specialists`: FTM and RTM fine-tuned from (b) at once, each on the transitions the
 //!    estimator (not the true area) assigns to its terrain, acting by switching (SPEC S8);
 //! f. `f-eval`: success rate and reach time of general, FTM and RTM in each area (Table 1),
-//!    and of switching between FTM and RTM on stage d's terrain mixture;
-//! g. `report.md`: every table beside the paper's numbers, figures and learning curves.
+//!    and of switching between FTM and RTM on stage d's terrain mixture, every model on the
+//!    same seeded courses (`EpisodeStart::Course`);
+//! g. `report.md`: every table beside the paper's numbers, figures, learning curves, and the
+//!    issue's claims checked leg by leg on the legs both models drove.
 
 use super::UserError;
 use super::run::{TELEMETRY_CSV, execute, learner_dir};
