@@ -125,26 +125,11 @@ struct Evaluated {
 fn legs_in(path: &Path) -> anyhow::Result<Vec<Vec<Option<u32>>>> {
     let mut reader =
         csv::Reader::from_path(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let headers = reader.headers()?.clone();
-    let col = |name: &str| {
-        headers
-            .iter()
-            .position(|h| h == name)
-            .with_context(|| format!("{}: no `{name}` column", path.display()))
-    };
-    let (env, episode, terminated, truncated, success) = (
-        col("env")?,
-        col("episode")?,
-        col("terminated")?,
-        col("truncated")?,
-        col("success")?,
-    );
     let mut legs: Vec<Vec<Option<u32>>> = Vec::new();
     let mut length: Vec<u32> = Vec::new();
-    for row in reader.records() {
-        let row = row?;
-        let e: usize = row[env].parse().context("env")?;
-        let leg: usize = row[episode].parse().context("episode")?;
+    for (i, row) in reader.deserialize::<common::TelemetryRow>().enumerate() {
+        let row = row.with_context(|| format!("{}: row {}", path.display(), i + 1))?;
+        let (e, leg) = (row.env as usize, row.episode as usize);
         if e >= legs.len() {
             legs.resize(e + 1, Vec::new());
             length.resize(e + 1, 0);
@@ -157,9 +142,8 @@ fn legs_in(path: &Path) -> anyhow::Result<Vec<Vec<Option<u32>>>> {
             legs[e].len()
         );
         length[e] += 1;
-        let flag = |i: usize| &row[i] == "true" || &row[i] == "1";
-        if flag(terminated) || flag(truncated) {
-            legs[e].push(flag(success).then_some(length[e]));
+        if row.terminated || row.truncated {
+            legs[e].push(row.success.then_some(length[e]));
             length[e] = 0;
         }
     }
@@ -926,20 +910,54 @@ fn report(p: &Pipeline, cells: &[Evaluated]) -> anyhow::Result<String> {
 mod tests {
     use super::*;
 
+    /// Writes telemetry rows `(env, episode, ending)` as `sim-proc --telemetry` does; the
+    /// ending is `Some(success)` on a leg's last row.
+    fn write_telemetry(path: &Path, rows: &[(u32, u64, Option<bool>)]) {
+        let mut w = csv::Writer::from_path(path).expect("csv");
+        for (tick, &(env, episode, ending)) in rows.iter().enumerate() {
+            w.serialize(common::TelemetryRow {
+                env,
+                tick: tick as u64,
+                area: AreaKind::Flat,
+                episode,
+                x: 0.0,
+                y: 0.0,
+                z: 0.0,
+                theta_x: 0.0,
+                theta_y: 0.0,
+                theta_z: 0.0,
+                sin_pitch: 0.0,
+                action_left: 0.0,
+                action_right: 0.0,
+                reward: 0.0,
+                terminated: ending == Some(true),
+                truncated: ending == Some(false),
+                success: ending == Some(true),
+                target_x: 0.0,
+                target_z: 0.0,
+            })
+            .expect("row");
+        }
+        w.flush().expect("flush");
+    }
+
     #[test]
     fn legs_and_reach_times_come_from_the_telemetry() {
         let dir = tempfile::tempdir().expect("tempdir");
         let csv = dir.path().join("t.csv");
         // env 0: success after 2 ticks, then a truncation after 2, then one leg unfinished;
         // env 1: success after 1.
-        std::fs::write(
+        write_telemetry(
             &csv,
-            "env,episode,tick,terminated,truncated,success\n\
-             0,0,0,false,false,false\n1,0,0,true,false,true\n\
-             0,0,1,true,false,true\n0,1,2,false,false,false\n\
-             0,1,3,false,true,false\n0,2,4,false,false,false\n",
-        )
-        .expect("write");
+            &[
+                (0, 0, None),
+                (1, 0, Some(true)),
+                (0, 0, Some(true)),
+                (0, 1, None),
+                (0, 1, Some(false)),
+                (0, 2, None),
+            ],
+        );
         let legs = legs_in(&csv).expect("parse");
         assert_eq!(legs, vec![vec![Some(2), None], vec![Some(1)]]);
         // Reach times {0.2, 0.1} s of 3 legs.
@@ -947,16 +965,16 @@ mod tests {
         assert_eq!((c.episodes, c.successes), (3, 2));
         assert!((c.mean_reach_s - 0.15).abs() < 1e-12 && (c.std_reach_s - 0.05).abs() < 1e-12);
         // A sim that restarted starts its legs again: those rows cannot pair.
-        std::fs::write(
-            &csv,
-            "env,episode,tick,terminated,truncated,success\n0,0,0,true,false,true\n0,0,0,false,false,false\n",
-        )
-        .expect("write");
+        write_telemetry(&csv, &[(0, 0, Some(true)), (0, 0, None)]);
         let e = legs_in(&csv).expect_err("restart");
         assert!(
             e.to_string().contains("env 0 is on leg 0 after ending 1"),
             "{e}"
         );
+        // A file of another layout is refused, naming the row.
+        std::fs::write(&csv, "env,episode\n0,x\n").expect("write");
+        let e = format!("{:#}", legs_in(&csv).expect_err("layout"));
+        assert!(e.contains("t.csv: row 1"), "{e}");
     }
 
     #[test]
