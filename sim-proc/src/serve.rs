@@ -179,7 +179,7 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
 
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
     let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
-    let mut csv = telemetry.map(TelemetryCsv::create).transpose()?;
+    let mut csv = telemetry.map(TelemetryCsv::append).transpose()?;
     let mut inbox = Inbox::connect(&bus, cfg.run.seed, !cfg.sim.mean_actions)?;
     let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");

@@ -113,22 +113,34 @@ pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
     }
 }
 
-/// A telemetry CSV (`--telemetry`), one row per env and tick. A file that already holds rows
-/// is appended to without a second header: a sim restarted inside a run keeps its rows.
+/// A telemetry CSV (`--telemetry`), one row per env and tick.
 pub struct TelemetryCsv {
     path: PathBuf,
     writer: csv::Writer<std::fs::File>,
 }
 
 impl TelemetryCsv {
+    /// A new file, replacing any earlier one: one standalone run's rows.
     pub fn create(path: &Path) -> Result<Self, SimError> {
+        Self::open(path, false)
+    }
+
+    /// Appends to the file, with a header only if it is empty: a sim restarted inside a run
+    /// keeps the rows of the one before it.
+    pub fn append(path: &Path) -> Result<Self, SimError> {
+        Self::open(path, true)
+    }
+
+    fn open(path: &Path, append: bool) -> Result<Self, SimError> {
         let err = |e: std::io::Error| SimError::Telemetry {
             path: path.to_path_buf(),
             reason: e.to_string(),
         };
         let file = std::fs::OpenOptions::new()
             .create(true)
-            .append(true)
+            .write(true)
+            .append(append)
+            .truncate(!append)
             .open(path)
             .map_err(err)?;
         let fresh = file.metadata().map_err(err)?.len() == 0;
@@ -277,4 +289,60 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(summary)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(env: u32) -> TelemetryRow {
+        TelemetryRow {
+            env,
+            tick: 0,
+            area: common::AreaKind::Flat,
+            episode: 0,
+            x: 0.0,
+            y: 0.0,
+            z: 0.0,
+            theta_x: 0.0,
+            theta_y: 0.0,
+            theta_z: 0.0,
+            sin_pitch: 0.0,
+            action_left: 0.0,
+            action_right: 0.0,
+            reward: 0.0,
+            terminated: false,
+            truncated: false,
+            success: false,
+            target_x: 0.0,
+            target_z: 0.0,
+        }
+    }
+
+    /// Rows of `path` by env, header checked.
+    fn envs_in(path: &Path) -> Vec<u32> {
+        csv::Reader::from_path(path)
+            .expect("csv")
+            .deserialize::<TelemetryRow>()
+            .map(|r| r.expect("row").env)
+            .collect()
+    }
+
+    #[test]
+    fn a_standalone_run_replaces_the_file_and_a_run_appends_to_it() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("t.csv");
+        for (open, env) in [
+            (TelemetryCsv::create as fn(&Path) -> _, 1),
+            (TelemetryCsv::create, 2),
+            (TelemetryCsv::append, 3),
+            (TelemetryCsv::append, 4),
+        ] {
+            let mut csv = open(&path).expect("open");
+            csv.write(&row(env)).expect("write");
+            csv.flush().expect("flush");
+        }
+        // The second create dropped the first's row; the appends kept it, under one header.
+        assert_eq!(envs_in(&path), vec![2, 3, 4]);
+    }
 }
