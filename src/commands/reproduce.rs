@@ -110,12 +110,11 @@ impl Cell {
     }
 }
 
-/// A model's evaluation in an area: the pooled cell and every leg behind it.
+/// A model's evaluation in an area: every leg it drove.
 #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 struct Evaluated {
     model: String,
     area: AreaKind,
-    cell: Cell,
     legs: Legs,
 }
 
@@ -310,7 +309,6 @@ impl Pipeline {
         Ok(Evaluated {
             model: model.into(),
             area,
-            cell,
             legs,
         })
     }
@@ -504,7 +502,13 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let eval = p.stage_dir("f-eval");
     let cells_path = eval.join("cells.json");
     let cells: Vec<Evaluated> = if p.done("f-eval") {
-        serde_json::from_str(&std::fs::read_to_string(&cells_path)?)?
+        serde_json::from_str(&std::fs::read_to_string(&cells_path)?).with_context(|| {
+            format!(
+                "{} is not stage f's legs (an older lavatube's?): remove {} to evaluate again",
+                cells_path.display(),
+                eval.display()
+            )
+        })?
     } else {
         std::fs::create_dir_all(p.fresh("f-eval")?)?;
         let mut cells = Vec::new();
@@ -579,9 +583,12 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
         return Ok(md);
     };
     for (i, Evaluated { model, area, .. }) in first.iter().enumerate() {
-        let cells: Vec<&Cell> = runs
+        let cells: Vec<Cell> = runs
             .iter()
-            .filter_map(|(_, c)| c.get(i).map(|c| &c.cell))
+            .filter_map(|(p, c)| {
+                c.get(i)
+                    .map(|c| Cell::of(&c.legs, p.base.sim.decision_dt()))
+            })
             .collect();
         let success: Vec<f64> = cells.iter().map(|c| c.success_pct()).collect();
         let reach: Vec<f64> = cells
@@ -735,7 +742,7 @@ fn checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> Vec<Che
     let best_single = |area: AreaKind| {
         ["general", "FTM", "RTM"]
             .into_iter()
-            .filter_map(|m| find(m, area).map(|c| (m, c.cell)))
+            .filter_map(|m| find(m, area).map(|c| (m, Cell::of(&c.legs, decision_dt))))
             .max_by(|(_, a), (_, b)| rank(a).total_cmp(&rank(b)))
     };
     let mut claims = vec![
@@ -823,18 +830,18 @@ impl Paired {
             .iter()
             .filter_map(|&(a, b)| Some([a? as f64 * decision_dt, b? as f64 * decision_dt]))
             .collect();
-        let mean = |xs: &mut dyn Iterator<Item = f64>, n: usize| xs.sum::<f64>() / n.max(1) as f64;
         let sooner: Vec<f64> = both.iter().map(|[a, b]| b - a).collect();
+        let mean = |xs: Vec<f64>| mean_ci(&xs).0;
         Self {
             legs: pairs.len(),
             success: [
-                mean(&mut pairs.iter().map(|p| pct(p.0)), pairs.len()),
-                mean(&mut pairs.iter().map(|p| pct(p.1)), pairs.len()),
+                mean(pairs.iter().map(|p| pct(p.0)).collect()),
+                mean(pairs.iter().map(|p| pct(p.1)).collect()),
             ],
             reached_by_both: both.len(),
             reach: [
-                mean(&mut both.iter().map(|b| b[0]), both.len()),
-                mean(&mut both.iter().map(|b| b[1]), both.len()),
+                mean(both.iter().map(|b| b[0]).collect()),
+                mean(both.iter().map(|b| b[1]).collect()),
             ],
             difference: mean_ci(&differences),
             faster: mean_ci(&sooner),
@@ -863,10 +870,8 @@ fn report(p: &Pipeline, cells: &[Evaluated]) -> anyhow::Result<String> {
         r.eval_roughness_scale.unwrap_or(trained)
     );
     md += "| model | area | ours: success % (episodes) | ours: reach s, mean (std) | paper: success % | paper: reach s |\n|---|---|---:|---:|---:|---:|\n";
-    for Evaluated {
-        model, area, cell, ..
-    } in cells
-    {
+    for Evaluated { model, area, legs } in cells {
+        let cell = Cell::of(legs, p.base.sim.decision_dt());
         let (ps, pr) = paper_cell(model, *area).map_or(("-".into(), "-".into()), |(s, m, sd)| {
             (format!("{s:.1}"), format!("{m:.2} ({sd:.2})"))
         });
@@ -1015,7 +1020,6 @@ mod tests {
         let eval = |model: &str, area: AreaKind, legs: Legs| Evaluated {
             model: model.into(),
             area,
-            cell: Cell::of(&legs, 0.1),
             legs,
         };
         let base = legs(100, &|i| (i % 10 != 0).then_some(30 + (i % 7) as u32));
@@ -1086,7 +1090,6 @@ mod tests {
         let eval = |model: &str, legs: Legs| Evaluated {
             model: model.into(),
             area: AreaKind::Mixed,
-            cell: Cell::of(&legs, 0.1),
             legs,
         };
         let general = eval("general", legs(&|i| Some(40 + (i % 5) as u32)));
@@ -1135,7 +1138,6 @@ mod tests {
                     cells.push(Evaluated {
                         model: model.into(),
                         area,
-                        cell: Cell::of(&legs(ticks), 0.1),
                         legs: legs(ticks),
                     });
                 }
