@@ -17,7 +17,8 @@ use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 #[derive(Debug, clap::Args)]
 pub struct RunArgs {
-    /// Config file (TOML). Defaults to the built-in defaults (`configs/default.toml` spells them out).
+    /// Config file (TOML). Without one: the built-in defaults, documented in
+    /// `common/src/config.rs` (the README's main job is `configs/default.toml`).
     #[arg(long)]
     pub config: Option<PathBuf>,
     /// Run id: names the run directory and prefixes every shared-memory resource. Default: a new one.
