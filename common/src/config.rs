@@ -687,6 +687,13 @@ pub struct EstimatorConfig {
     pub tol: f64,
     /// Variance floor of each component. (0, 1]. Default 1e-10.
     pub var_floor: f64,
+    /// Hold the mixing weights at 1/K instead of fitting them (interpretation; SPEC S7's
+    /// mixture fits them). Default false. A terrain whose windows are not one Gaussian (its
+    /// envs differ in level) lets free weights settle on a sub-cluster with a higher
+    /// likelihood than the split by terrain; collection drives every area alike, so equal
+    /// weights are also the prior the data was drawn with. Wrong for data far from equal
+    /// shares: at 90 / 10 the fit splits the larger terrain instead.
+    pub equal_weights: bool,
     /// Online: refit the mixture every this many ticks; 0 never refits (the first fit, or
     /// `model`, classifies throughout). 0 ..= 10^6. Default 500.
     pub refit_every: usize,
@@ -830,6 +837,7 @@ impl Default for EstimatorConfig {
             max_iter: 500,
             tol: 1e-8,
             var_floor: 1e-10,
+            equal_weights: false,
             refit_every: 500,
             pool_size: 20_000,
             stay_prob: 0.98,

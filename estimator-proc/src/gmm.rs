@@ -34,6 +34,8 @@ pub struct FitOptions {
     pub tol: f64,
     /// Lower bound on each component's variance.
     pub var_floor: f64,
+    /// Mixing weights held at 1/K (only means and variances are fitted).
+    pub equal_weights: bool,
     /// Seed of the k-means++ draws (restart `r` uses stream `r`).
     pub seed: u64,
 }
@@ -46,6 +48,7 @@ impl FitOptions {
             max_iter: cfg.max_iter,
             tol: cfg.tol,
             var_floor: cfg.var_floor,
+            equal_weights: cfg.equal_weights,
             seed,
         }
     }
@@ -241,8 +244,10 @@ impl Gmm {
     }
 
     /// The M-step: maximum-likelihood parameters given the E-step's statistics, each variance
-    /// raised to `var_floor`. Fails if a component has (numerically) no responsibility left.
-    pub fn m_step(stats: &SuffStats, var_floor: f64) -> Result<Self> {
+    /// raised to `var_floor`, the weights 1/K when `equal_weights` (the constrained maximiser,
+    /// so EM still never lowers the likelihood). Fails if a component has (numerically) no
+    /// responsibility left.
+    pub fn m_step(stats: &SuffStats, var_floor: f64, equal_weights: bool) -> Result<Self> {
         let total: f64 = stats.n.iter().sum();
         let mut weights = Vec::with_capacity(stats.n.len());
         let mut means = Vec::with_capacity(stats.n.len());
@@ -255,7 +260,11 @@ impl Gmm {
                 });
             }
             let ds = stats.s[c] / n;
-            weights.push(n / total);
+            weights.push(if equal_weights {
+                1.0 / stats.n.len() as f64
+            } else {
+                n / total
+            });
             means.push(stats.shift[c] + ds);
             variances.push((stats.q[c] / n - ds * ds).max(var_floor));
         }
@@ -433,6 +442,10 @@ fn kmeans_pp(
 /// `max_iter` M-steps are done.
 fn run_em(data: &[f64], mut model: Gmm, opts: &FitOptions) -> Result<FitReport> {
     let n = data.len() as f64;
+    if opts.equal_weights {
+        let k = model.components();
+        model = Gmm::new(vec![1.0 / k as f64; k], model.means, model.variances)?;
+    }
     let mut history: Vec<f64> = Vec::new();
     let mut converged = false;
     let mut iterations = 0;
@@ -450,7 +463,7 @@ fn run_em(data: &[f64], mut model: Gmm, opts: &FitOptions) -> Result<FitReport> 
         if converged || iterations == opts.max_iter {
             break;
         }
-        model = Gmm::m_step(&e.stats, opts.var_floor)?;
+        model = Gmm::m_step(&e.stats, opts.var_floor, opts.equal_weights)?;
         iterations += 1;
     }
     let log_likelihood = history.last().copied().unwrap_or(f64::NEG_INFINITY);
@@ -568,7 +581,7 @@ mod tests {
             "{} vs {ll}",
             e.log_likelihood
         );
-        let next = Gmm::m_step(&e.stats, 1e-10).expect("m-step");
+        let next = Gmm::m_step(&e.stats, 1e-10, false).expect("m-step");
         let mean0 = (0.5 + 2.0 * b) / 1.5;
         let var0 =
             (a * mean0.powi(2) + 0.5 * (1.0 - mean0).powi(2) + b * (2.0 - mean0).powi(2)) / 1.5;
@@ -666,6 +679,37 @@ mod tests {
             );
             assert!((r.model.means()[0] + 3.0).abs() < 0.1);
         }
+    }
+
+    #[test]
+    fn equal_weights_hold_one_over_k_and_em_still_climbs() {
+        // 60 % of the points around 0, 40 % around 5: free weights find 0.6 / 0.4; held at
+        // one half each, the means still find both clusters (at 90 / 10 they would split
+        // the larger one instead: equal weights suit data drawn about equally).
+        let data = sample(4_000, &[0.6, 0.4], &[0.0, 5.0], &[1.0, 1.0], 6);
+        let free = fit(&data, &opts(2)).expect("free");
+        assert!((free.model.weights()[0] - 0.6).abs() < 0.03);
+        let held = fit(
+            &data,
+            &FitOptions {
+                equal_weights: true,
+                ..opts(2)
+            },
+        )
+        .expect("held");
+        assert_eq!(held.model.weights(), &[0.5, 0.5]);
+        assert!(
+            (held.model.means()[0]).abs() < 0.1,
+            "{:?}",
+            held.model.means()
+        );
+        assert!(
+            (held.model.means()[1] - 5.0).abs() < 0.1,
+            "{:?}",
+            held.model.means()
+        );
+        assert!(held.history.windows(2).all(|p| p[1] >= p[0] - 1e-9));
+        assert!(held.log_likelihood < free.log_likelihood);
     }
 
     #[test]

@@ -23,6 +23,8 @@ pub struct AnalysisReport {
     pub warmup_ticks: usize,
     pub seed: u64,
     pub components: usize,
+    /// Mixing weights held at 1/K (`estimator.equal-weights`), not fitted.
+    pub equal_weights: bool,
     /// The rolling-std convention.
     pub std: &'static str,
     pub series: SeriesCount,
@@ -80,7 +82,7 @@ impl AnalysisReport {
         let _ = writeln!(
             md,
             "Input `{}`: {} flat and {} rough series, first {} ticks of each dropped; rolling {} of sin θx; \
-             {}-component Gaussian mixture over {} by EM (seed {}), components by ascending mean (first = flat).\n",
+             {}-component Gaussian mixture over {} by EM (seed {}){}, components by ascending mean (first = flat).\n",
             self.input,
             self.series.flat,
             self.series.rough,
@@ -94,7 +96,12 @@ impl AnalysisReport {
                 }
                 _ => "each window's std",
             },
-            self.seed
+            self.seed,
+            if self.equal_weights {
+                ", mixing weights held equal (`estimator.equal-weights`)"
+            } else {
+                ""
+            }
         );
         let _ = writeln!(
             md,

@@ -56,6 +56,7 @@ pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
         warmup_ticks: cfg.warmup_ticks,
         seed,
         components: cfg.components,
+        equal_weights: cfg.equal_weights,
         std: "sample std (ddof = 1, as pandas rolling().std())",
         series: SeriesCount {
             flat: count(AreaKind::Flat),
