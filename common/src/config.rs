@@ -626,6 +626,11 @@ pub struct PpoConfig {
     pub checkpoint_every: usize,
     /// Checkpoints kept (oldest removed). 1 ..= 1000. Default 3.
     pub keep_checkpoints: usize,
+    /// Also keep, for good, every checkpoint whose update count is a multiple of this: a
+    /// learning run's milestones, to pick the best of by validation (`lavatube reproduce`
+    /// does, see `reproduce.specialist-candidates`). 0 or a multiple of `checkpoint-every`,
+    /// ..= 10^6. Default 0: none.
+    pub milestone_every: usize,
     /// In async mode, drop transitions more than this many policy versions old. 0 ..= 1000. Default 4.
     pub max_policy_lag: u32,
 }
@@ -655,6 +660,7 @@ impl Default for PpoConfig {
             obs_clip: 10.0,
             checkpoint_every: 1,
             keep_checkpoints: 3,
+            milestone_every: 0,
             max_policy_lag: 4,
         }
     }
@@ -1208,6 +1214,17 @@ impl Config {
         in_range("ppo.obs-clip", p.obs_clip, 1e-3, 100.0)?;
         count_in("ppo.checkpoint-every", p.checkpoint_every, 1, 1_000_000)?;
         count_in("ppo.keep-checkpoints", p.keep_checkpoints, 1, 1000)?;
+        count_in("ppo.milestone-every", p.milestone_every, 0, 1_000_000)?;
+        if !p.milestone_every.is_multiple_of(p.checkpoint_every) {
+            return Err(invalid(
+                "ppo.milestone-every",
+                p.milestone_every,
+                format!(
+                    "must be a multiple of ppo.checkpoint-every ({}): only written checkpoints can be kept",
+                    p.checkpoint_every
+                ),
+            ));
+        }
         count_in("ppo.max-policy-lag", p.max_policy_lag as usize, 0, 1000)?;
         let e = &self.estimator;
         if e.windows.is_empty() {

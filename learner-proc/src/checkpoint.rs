@@ -182,14 +182,24 @@ pub fn list(dir: &Path) -> Result<Vec<(u64, PathBuf)>, LearnerError> {
     Ok(found)
 }
 
-/// Writes `ckpt` into `dir` (created if needed) and deletes all but the newest `keep`.
-pub fn save(dir: &Path, ckpt: &Checkpoint, keep: usize) -> Result<PathBuf, LearnerError> {
+/// Writes `ckpt` into `dir` (created if needed) and deletes all but the newest `keep`,
+/// sparing milestones: checkpoints whose update is a multiple of `milestone_every` (not 0).
+pub fn save(
+    dir: &Path,
+    ckpt: &Checkpoint,
+    keep: usize,
+    milestone_every: usize,
+) -> Result<PathBuf, LearnerError> {
     fs::create_dir_all(dir).map_err(LearnerError::io("creating", dir))?;
     let path = dir.join(file_name(ckpt.counters.update));
     write_atomic(&path, &encode(ckpt)?)?;
     let all = list(dir)?;
-    for (_, old) in all.iter().take(all.len().saturating_sub(keep.max(1))) {
-        fs::remove_file(old).map_err(LearnerError::io("removing old checkpoint", old))?;
+    let milestone =
+        |update: u64| milestone_every > 0 && update.is_multiple_of(milestone_every as u64);
+    for (update, old) in all.iter().take(all.len().saturating_sub(keep.max(1))) {
+        if !milestone(*update) {
+            fs::remove_file(old).map_err(LearnerError::io("removing old checkpoint", old))?;
+        }
     }
     Ok(path)
 }
@@ -266,9 +276,15 @@ impl Learner {
         Self::from_state(cfg, ckpt.layout, state)
     }
 
-    /// Saves into `dir` as `checkpoint-<update>.ckpt`, keeping the newest `keep-checkpoints`.
+    /// Saves into `dir` as `checkpoint-<update>.ckpt`, keeping the newest `keep-checkpoints`
+    /// and every `milestone-every`th.
     pub fn save_checkpoint(&self, dir: &Path) -> Result<PathBuf, LearnerError> {
-        save(dir, &self.checkpoint(), self.ppo.keep_checkpoints)
+        save(
+            dir,
+            &self.checkpoint(),
+            self.ppo.keep_checkpoints,
+            self.ppo.milestone_every,
+        )
     }
 
     /// Loads one named checkpoint file.
@@ -384,10 +400,19 @@ mod tests {
     }
 
     fn saved_dir(updates: u64, keep: usize) -> (tempfile::TempDir, Learner) {
+        saved_with_milestones(updates, keep, 0)
+    }
+
+    fn saved_with_milestones(
+        updates: u64,
+        keep: usize,
+        milestone_every: usize,
+    ) -> (tempfile::TempDir, Learner) {
         let dir = tempfile::tempdir().expect("tempdir");
         let mut cfg = small_config(128, 10);
         cfg.ppo.epochs = 1;
         cfg.ppo.keep_checkpoints = keep;
+        cfg.ppo.milestone_every = milestone_every;
         let mut l = learner(&cfg, 21);
         let r = OwnedRollout::acted_by(&l, 64, 4, 22);
         for _ in 0..updates {
@@ -406,6 +431,17 @@ mod tests {
             .map(|(u, _)| u)
             .collect();
         assert_eq!(kept, vec![3, 4]);
+    }
+
+    #[test]
+    fn milestones_outlive_the_newest_k() {
+        let (dir, _) = saved_with_milestones(7, 2, 3);
+        let kept: Vec<u64> = list(dir.path())
+            .expect("list")
+            .into_iter()
+            .map(|(u, _)| u)
+            .collect();
+        assert_eq!(kept, vec![3, 6, 7]);
     }
 
     #[test]
