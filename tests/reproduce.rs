@@ -33,6 +33,9 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         "{report}"
     );
     let table1: Vec<&str> = report
+        .split("## Shape checks")
+        .next()
+        .unwrap_or_default()
         .lines()
         .filter(|l| {
             ["| general |", "| FTM |", "| RTM |", "| switching |"]
@@ -79,9 +82,53 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         "refit-every = 0",
         "episodes = \"course\"",
         "feature = \"log-std\"",
+        "equal-weights = true",
     ] {
         assert!(switch.contains(line), "{line}: {switch}");
     }
+    // Early stopping: each specialist is one of the general model and stage e's two
+    // checkpoints, validated on its own terrain's courses (seeds 2^20 from stage f's), and
+    // switching serves the ones chosen.
+    let selection: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("e-select/selection.json")).expect("selection.json"),
+    )
+    .expect("selection json");
+    let chosen: Vec<&str> = ["FTM", "RTM"]
+        .iter()
+        .enumerate()
+        .map(|(i, model)| {
+            let s = &selection[i];
+            assert_eq!(s["model"], *model, "{selection}");
+            let labels: Vec<&str> = s["candidates"]
+                .as_array()
+                .expect("candidates")
+                .iter()
+                .map(|c| c["label"].as_str().expect("label"))
+                .collect();
+            assert_eq!(labels, ["general", "update 1", "update 2"], "{selection}");
+            s["candidates"][s["chosen"].as_u64().expect("chosen") as usize]["checkpoint"]
+                .as_str()
+                .expect("checkpoint")
+        })
+        .collect();
+    for path in &chosen {
+        assert!(switch.contains(&format!("\"{path}\"")), "{path}: {switch}");
+    }
+    let validation = std::fs::read_to_string(out.join("e-select/ftm-general-flat-0.toml"))
+        .expect("validation config");
+    assert!(validation.contains("seed = 1048579"), "{validation}");
+    assert!(
+        report.contains("## Specialists chosen on validation courses (stage e)"),
+        "{report}"
+    );
+    assert_eq!(
+        report
+            .lines()
+            .filter(|l| l.ends_with("| **yes** |"))
+            .count(),
+        2,
+        "{report}"
+    );
     // Paired evaluation: the runtime's sim (switching) and `sim-proc` alone (one model) drive
     // the same course, leg by leg.
     let legs = |csv: &str| -> Vec<[String; 3]> {

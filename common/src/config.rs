@@ -962,6 +962,14 @@ pub struct ReproduceConfig {
     /// (0, 1]. Default unset: the `[ppo]` one. Fine-tuning a converged model at the rate it
     /// was trained from scratch with can move it away from what it already does well.
     pub finetune_learning_rate: Option<f64>,
+    /// (e) Checkpoints of each specialist's fine-tuning kept as candidates, evenly spaced
+    /// (`ppo.milestone-every`). 0 ..= 100. Default 0, the paper's: FTM and RTM are the
+    /// fine-tuning's last checkpoints. With N > 0, each specialist is the one of the general
+    /// model (no fine-tuning), the N milestones and the last checkpoint that does best on its
+    /// own terrain over validation courses, seeds apart from stage f's (early stopping).
+    pub specialist_candidates: usize,
+    /// (e) Episodes each candidate drives on the validation courses. 1 ..= 10^6. Default 500.
+    pub validation_episodes: u64,
     /// (g) Non-inferiority margins of the shape checks: "A at least as good as B" reads "no"
     /// only when A falls short of B by more than `margin-pp` percentage points of success,
     /// or by more than `margin-s` seconds of reach time, beyond the noise of the paired
@@ -985,6 +993,8 @@ impl Default for ReproduceConfig {
             finetune_roughness_scale: None,
             eval_roughness_scale: None,
             finetune_learning_rate: None,
+            specialist_candidates: 0,
+            validation_episodes: 500,
             margin_pp: 1.0,
             margin_s: 0.05,
         }
@@ -1281,6 +1291,12 @@ impl Config {
         count_in("reproduce.flat-envs", p.flat_envs, 1, 1024)?;
         count_in("reproduce.envs-per-area", p.envs_per_area, 1, 512)?;
         count_in("reproduce.eval-envs", p.eval_envs, 1, 1024)?;
+        count_in(
+            "reproduce.specialist-candidates",
+            p.specialist_candidates,
+            0,
+            100,
+        )?;
         for (field, v) in [
             (
                 "reproduce.finetune-roughness-scale",
@@ -1303,6 +1319,11 @@ impl Config {
             ("reproduce.collect-steps", p.collect_steps, 1_000_000),
             ("reproduce.finetune-steps", p.finetune_steps, 10_000_000_000),
             ("reproduce.eval-episodes", p.eval_episodes, 1_000_000),
+            (
+                "reproduce.validation-episodes",
+                p.validation_episodes,
+                1_000_000,
+            ),
         ] {
             if !(1..=hi).contains(&v) {
                 return Err(invalid(field, v, format!("must be in [1, {hi}]")));
@@ -1466,6 +1487,17 @@ mod tests {
         );
         let e = parse("[reproduce]\nmargin-s = -0.1\n").expect_err("negative margin");
         assert!(e.to_string().contains("reproduce.margin-s"), "{e}");
+        let e =
+            parse("[ppo]\ncheckpoint-every = 4\nmilestone-every = 10\n").expect_err("unwritten");
+        assert_eq!(
+            e.to_string(),
+            "config field `ppo.milestone-every` = 10: must be a multiple of ppo.checkpoint-every (4): only written checkpoints can be kept"
+        );
+        let e = parse("[reproduce]\nspecialist-candidates = 101\n").expect_err("range");
+        assert!(
+            e.to_string().contains("reproduce.specialist-candidates"),
+            "{e}"
+        );
         let e = parse("[sim.task]\nepisodes = \"reset\"\n").expect_err("unknown start");
         assert!(
             e.to_string().contains("chained") && e.to_string().contains("course"),

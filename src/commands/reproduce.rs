@@ -54,6 +54,21 @@ const PAPER_TABLE_1: [(&str, [PaperCell; 2]); 3] = [
 /// Where stage f evaluates every model: SPEC S8's two areas, then the mixed course.
 const EVAL_AREAS: [AreaKind; 3] = [AreaKind::Flat, AreaKind::Rough, AreaKind::Mixed];
 
+/// Validation courses' seeds start this far from the run's, so stage e's choice of
+/// specialist never drives stage f's courses.
+const VALIDATION_SEEDS: u64 = 1 << 20;
+
+/// The courses an evaluation drives: the stage that drives them (for progress lines), the
+/// first seed (a cell short of its episodes drives the next), the episodes a cell needs, and
+/// the ticks per env of one run.
+#[derive(Debug, Clone, Copy)]
+struct Courses {
+    stage: &'static str,
+    seed: u64,
+    episodes: u64,
+    ticks: u64,
+}
+
 /// Stage f's guess at the ticks an evaluation episode lasts, to size its runs: trained
 /// models reach the target in about 40 (3.5-4 s at 0.1 s per tick).
 const EPISODE_TICKS_GUESS: u64 = 50;
@@ -216,18 +231,97 @@ impl Pipeline {
         self.finish(name, serde_json::json!({ "stage": name }))
     }
 
-    /// The newest checkpoint of stage `name`'s learner for `slot`.
-    fn checkpoint(&self, name: &str, slot: PolicySlot) -> anyhow::Result<PathBuf> {
+    /// Stage `name`'s checkpoints of the learner for `slot`, oldest first, each with the
+    /// update it was taken after.
+    fn checkpoints(&self, name: &str, slot: PolicySlot) -> anyhow::Result<Vec<(u64, PathBuf)>> {
         let dir = learner_dir(&self.stage_dir(name), slot).join("checkpoints");
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+        let mut files: Vec<(u64, PathBuf)> = std::fs::read_dir(&dir)
             .with_context(|| format!("cannot list {}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|x| x == "ckpt"))
+            .filter_map(|p| {
+                let update = p
+                    .file_name()?
+                    .to_str()?
+                    .strip_prefix("checkpoint-")?
+                    .strip_suffix(".ckpt")?
+                    .parse()
+                    .ok()?;
+                Some((update, p))
+            })
             .collect();
         files.sort();
-        files
-            .pop()
-            .with_context(|| format!("no checkpoint in {}", dir.display()))
+        anyhow::ensure!(!files.is_empty(), "no checkpoint in {}", dir.display());
+        Ok(files)
+    }
+
+    /// The newest checkpoint of stage `name`'s learner for `slot`.
+    fn checkpoint(&self, name: &str, slot: PolicySlot) -> anyhow::Result<PathBuf> {
+        let mut all = self.checkpoints(name, slot)?;
+        Ok(all.pop().map(|(_, p)| p).unwrap_or_default())
+    }
+
+    /// Stage e's `ppo.milestone-every`: `reproduce.specialist-candidates` milestones spread
+    /// evenly over each specialist's updates (one per rollout), the last one at the end.
+    fn milestone_every(&self) -> usize {
+        let (r, ppo) = (&self.base.reproduce, &self.base.ppo);
+        let updates = (r.finetune_steps / ppo.rollout_transitions as u64).max(1) as usize;
+        updates
+            .div_ceil(r.specialist_candidates.max(1))
+            .next_multiple_of(ppo.checkpoint_every)
+    }
+
+    /// Early stopping for the specialist `model`, fine-tuned in stage e by the learner of
+    /// `slot`: the general model (`general`, no fine-tuning), stage e's milestones and its
+    /// last checkpoint each drive validation courses in `area`; the best by [`rank`] wins,
+    /// the least fine-tuned on a tie.
+    fn select(
+        &self,
+        model: &str,
+        slot: PolicySlot,
+        area: AreaKind,
+        general: &Path,
+    ) -> anyhow::Result<Selection> {
+        let dir = self.stage_dir("e-select");
+        let every = self.milestone_every() as u64;
+        let all = self.checkpoints("e-specialists", slot)?;
+        let last = all.len() - 1;
+        let mut tried = vec![("general".to_string(), general.to_path_buf())];
+        tried.extend(
+            all.into_iter()
+                .enumerate()
+                .filter(|(i, (update, _))| *i == last || update.is_multiple_of(every))
+                .map(|(_, (update, ckpt))| (format!("update {update}"), ckpt)),
+        );
+        let courses = self.validation_courses();
+        let mut candidates = Vec::new();
+        let mut ranks = Vec::new();
+        for (k, (label, checkpoint)) in tried.into_iter().enumerate() {
+            let weights = dir.join(format!("{}-{k}.policy", model.to_lowercase()));
+            self.export(&checkpoint, &weights)?;
+            let name = format!("{model}-{}", label.replace(' ', "-"));
+            let tried = self.evaluate_policy(&name, &weights, area, courses, &dir)?;
+            let cell = Cell::of(&tried.legs, self.base.sim.decision_dt());
+            ranks.push(rank(&cell));
+            candidates.push(Candidate {
+                label,
+                checkpoint,
+                cell: Some(cell),
+            });
+        }
+        let chosen = (0..ranks.len())
+            .reduce(|best, k| if ranks[k] > ranks[best] { k } else { best })
+            .unwrap_or_default();
+        self.say(&format!(
+            "e-select: {model} is {} ({} candidates)",
+            candidates[chosen].label,
+            candidates.len()
+        ));
+        Ok(Selection {
+            model: model.into(),
+            area,
+            candidates,
+            chosen,
+        })
     }
 
     /// Exports a checkpoint's actor to `out` with `learner-proc export`.
@@ -274,19 +368,21 @@ impl Pipeline {
         Ok(())
     }
 
-    /// Evaluates `model` in `area`: runs `run_part` (the config, the part's name; returns its
-    /// telemetry CSV) with seeds `run.seed`, +1, … until the cell has its episodes. Every model
-    /// runs the same seeds on the same courses, so their legs pair up.
+    /// Evaluates `model` in `area` on `courses`: runs `run_part` (the config, the part's
+    /// name; returns its telemetry CSV) with seeds `courses.seed`, +1, … until the cell has
+    /// its episodes. Every model runs the same seeds on the same courses, so their legs pair up.
     fn evaluate(
         &self,
         model: &str,
         area: AreaKind,
+        courses: Courses,
         mut run_part: impl FnMut(&Config, &str) -> anyhow::Result<PathBuf>,
     ) -> anyhow::Result<Evaluated> {
         let mut cfg = self.eval_in(area);
+        cfg.run.seed = courses.seed;
         let mut legs = Legs::new();
         let dt = cfg.sim.decision_dt();
-        while Cell::of(&legs, dt).episodes < self.base.reproduce.eval_episodes {
+        while Cell::of(&legs, dt).episodes < courses.episodes {
             let name = format!("{}-{}-{}", model.to_lowercase(), area.name(), legs.len());
             let csv = run_part(&cfg, &name)?;
             let part = legs_in(&csv)?;
@@ -300,7 +396,8 @@ impl Pipeline {
         }
         let cell = Cell::of(&legs, dt);
         self.say(&format!(
-            "f-eval: {model} on {} ground: {:.1}% of {} episodes, reach s {}",
+            "{}: {model} on {} ground: {:.1}% of {} episodes, reach s {}",
+            courses.stage,
             area.name(),
             cell.success_pct(),
             cell.episodes,
@@ -313,6 +410,22 @@ impl Pipeline {
         })
     }
 
+    /// `weights` alone (`sim-proc`) on `courses` in `area`, its telemetry in `dir`.
+    fn evaluate_policy(
+        &self,
+        model: &str,
+        weights: &Path,
+        area: AreaKind,
+        courses: Courses,
+        dir: &Path,
+    ) -> anyhow::Result<Evaluated> {
+        self.evaluate(model, area, courses, |cfg, part| {
+            let csv = dir.join(format!("{part}.csv"));
+            self.drive(cfg, weights, courses.ticks, &csv)?;
+            Ok(csv)
+        })
+    }
+
     /// SPEC S8's switching policy in `area`: FTM and RTM served frozen, each env acting with
     /// the one its live terrain estimate points to (mean actions), through the full runtime
     /// with the estimator.
@@ -322,8 +435,9 @@ impl Pipeline {
         frozen: &std::collections::BTreeMap<PolicySlot, PathBuf>,
         eval: &Path,
     ) -> anyhow::Result<Evaluated> {
-        let steps = self.eval_ticks() * self.base.reproduce.eval_envs as u64;
-        self.evaluate("switching", area, |base, name| {
+        let courses = self.test_courses();
+        let steps = courses.ticks * self.base.reproduce.eval_envs as u64;
+        self.evaluate("switching", area, courses, |base, name| {
             let mut cfg = base.clone();
             cfg.run.learners.clear();
             cfg.run.frozen = frozen.clone();
@@ -368,13 +482,31 @@ impl Pipeline {
         c
     }
 
-    /// Ticks per env of one evaluation run: enough for the cell's episodes at
-    /// `EPISODE_TICKS_GUESS` ticks each, and for every env to end one episode however long
-    /// it lasts. A cell short of its episodes runs again with the next seed.
-    fn eval_ticks(&self) -> u64 {
+    /// Courses of `episodes` per cell from seed `seed` on. Ticks per env of one run: enough
+    /// for the episodes at `EPISODE_TICKS_GUESS` ticks each, and for every env to end one
+    /// episode however long it lasts. A cell short of its episodes runs again with the next seed.
+    fn courses(&self, stage: &'static str, seed: u64, episodes: u64) -> Courses {
+        let envs = self.base.reproduce.eval_envs as u64;
+        Courses {
+            stage,
+            seed,
+            episodes,
+            ticks: (episodes.div_ceil(envs) * EPISODE_TICKS_GUESS)
+                .max(self.base.sim.task.longest_episode_ticks() + 1),
+        }
+    }
+
+    /// Stage f's courses, from the run's seed on.
+    fn test_courses(&self) -> Courses {
         let r = &self.base.reproduce;
-        (r.eval_episodes.div_ceil(r.eval_envs as u64) * EPISODE_TICKS_GUESS)
-            .max(self.base.sim.task.longest_episode_ticks() + 1)
+        self.courses("f-eval", self.base.run.seed, r.eval_episodes)
+    }
+
+    /// Stage e's validation courses, `VALIDATION_SEEDS` away from stage f's.
+    fn validation_courses(&self) -> Courses {
+        let r = &self.base.reproduce;
+        let seed = self.base.run.seed.wrapping_add(VALIDATION_SEEDS);
+        self.courses("e-select", seed, r.validation_episodes)
     }
 }
 
@@ -484,20 +616,19 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     if let Some(lr) = r.finetune_learning_rate {
         e.ppo.learning_rate = lr;
     }
+    if r.specialist_candidates > 0 {
+        e.ppo.milestone_every = p.milestone_every();
+    }
     p.train("e-specialists", e)?;
+    let selections = specialists(p)?;
     let models = [
         ("general", general),
         ("FTM", policies.join("ftm.policy")),
         ("RTM", policies.join("rtm.policy")),
     ];
-    p.export(
-        &p.checkpoint("e-specialists", PolicySlot::Flat)?,
-        &models[1].1,
-    )?;
-    p.export(
-        &p.checkpoint("e-specialists", PolicySlot::Rough)?,
-        &models[2].1,
-    )?;
+    for ((_, weights), s) in models[1..].iter().zip(&selections) {
+        p.export(s.checkpoint(), weights)?;
+    }
 
     let eval = p.stage_dir("f-eval");
     let cells_path = eval.join("cells.json");
@@ -514,36 +645,101 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
         let mut cells = Vec::new();
         for (name, weights) in &models {
             for area in EVAL_AREAS {
-                cells.push(p.evaluate(name, area, |cfg, part| {
-                    let csv = eval.join(format!("{part}.csv"));
-                    p.drive(cfg, weights, p.eval_ticks(), &csv)?;
-                    Ok(csv)
-                })?);
+                cells.push(p.evaluate_policy(name, weights, area, p.test_courses(), &eval)?);
             }
         }
-        let frozen = [
-            (
-                PolicySlot::Flat,
-                p.checkpoint("e-specialists", PolicySlot::Flat)?,
-            ),
-            (
-                PolicySlot::Rough,
-                p.checkpoint("e-specialists", PolicySlot::Rough)?,
-            ),
-        ];
+        let frozen = [PolicySlot::Flat, PolicySlot::Rough]
+            .into_iter()
+            .zip(selections.iter().map(|s| s.checkpoint().to_path_buf()))
+            .collect();
         for area in EVAL_AREAS {
-            cells.push(p.switching(area, &frozen.clone().into(), &eval)?);
+            cells.push(p.switching(area, &frozen, &eval)?);
         }
         std::fs::write(&cells_path, serde_json::to_string(&cells)?)?;
         p.finish("f-eval", serde_json::json!({ "cells": cells.len() }))?;
         cells
     };
 
-    let report = report(p, &cells)?;
+    let report = report(p, &cells, &selections)?;
     let path = out.join("report.md");
     std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
     println!("report: {}", path.display());
     Ok(cells)
+}
+
+/// A specialist's candidates on its terrain's validation courses (stage e), and the one
+/// chosen. Without candidates (`reproduce.specialist-candidates` = 0, the paper's) the only
+/// one is the fine-tuning's last checkpoint, not validated.
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+struct Selection {
+    model: String,
+    area: AreaKind,
+    candidates: Vec<Candidate>,
+    chosen: usize,
+}
+
+#[derive(Debug, Clone, serde::Serialize, serde::Deserialize)]
+struct Candidate {
+    /// "general" (no fine-tuning) or "update N" of the fine-tuning.
+    label: String,
+    checkpoint: PathBuf,
+    /// On the validation courses; `None` when not validated.
+    cell: Option<Cell>,
+}
+
+impl Selection {
+    fn checkpoint(&self) -> &Path {
+        &self.candidates[self.chosen].checkpoint
+    }
+}
+
+/// FTM and RTM (SPEC S8): stage e's last checkpoints, or with `specialist-candidates` the
+/// ones stage `e-select` validates best ([`Pipeline::select`]), chosen once and kept.
+fn specialists(p: &Pipeline) -> anyhow::Result<Vec<Selection>> {
+    let roles = [
+        ("FTM", PolicySlot::Flat, AreaKind::Flat),
+        ("RTM", PolicySlot::Rough, AreaKind::Rough),
+    ];
+    if p.base.reproduce.specialist_candidates == 0 {
+        return roles
+            .into_iter()
+            .map(|(model, slot, area)| {
+                let checkpoint = p.checkpoint("e-specialists", slot)?;
+                Ok(Selection {
+                    model: model.into(),
+                    area,
+                    candidates: vec![Candidate {
+                        label: "last checkpoint".into(),
+                        checkpoint,
+                        cell: None,
+                    }],
+                    chosen: 0,
+                })
+            })
+            .collect();
+    }
+    let path = p.stage_dir("e-select").join("selection.json");
+    if p.done("e-select") {
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        return serde_json::from_str(&text).with_context(|| {
+            format!(
+                "{} is not stage e's selection: remove its directory to select again",
+                path.display()
+            )
+        });
+    }
+    std::fs::create_dir_all(p.fresh("e-select")?)?;
+    p.say("e-select: each specialist's candidates on validation courses of its terrain");
+    let general = p.checkpoint("b-general", PolicySlot::General)?;
+    let chosen = roles
+        .into_iter()
+        .map(|(model, slot, area)| p.select(model, slot, area, &general))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    std::fs::write(&path, serde_json::to_string_pretty(&chosen)?)
+        .with_context(|| format!("cannot write {}", path.display()))?;
+    p.finish("e-select", serde_json::json!({ "selection": path }))?;
+    Ok(chosen)
 }
 
 /// Mean and half-width of the 95 % confidence interval of the mean (Student's t).
@@ -849,6 +1045,34 @@ impl Paired {
     }
 }
 
+/// Stage e's choice of specialists, when it validated candidates (`specialist-candidates`).
+fn selection_table(selections: &[Selection], episodes: u64) -> String {
+    if selections.iter().all(|s| s.candidates.len() < 2) {
+        return String::new();
+    }
+    let mut md = format!(
+        "\n## Specialists chosen on validation courses (stage e)\n\nEach specialist is the candidate that did best on its own terrain over validation courses (about {episodes} episodes each, seeds apart from the evaluation's): the general model it was fine-tuned from, or a checkpoint of its fine-tuning (`reproduce.specialist-candidates`). Best = highest success rate, then shortest mean reach time.\n\n| model | area | candidate | success % (episodes) | reach s, mean (std) | chosen |\n|---|---|---|---:|---:|:---:|\n"
+    );
+    for s in selections {
+        for (k, c) in s.candidates.iter().enumerate() {
+            let (success, reach) = c.cell.map_or(("-".into(), "-".into()), |cell| {
+                (
+                    format!("{:.1} ({})", cell.success_pct(), cell.episodes),
+                    cell.reach(),
+                )
+            });
+            md += &format!(
+                "| {} | {} | {} | {success} | {reach} | {} |\n",
+                s.model,
+                s.area.name(),
+                c.label,
+                if k == s.chosen { "**yes**" } else { "" }
+            );
+        }
+    }
+    md
+}
+
 /// The paper's Table 1 cell for `model` in `area`, if the paper has one.
 fn paper_cell(model: &str, area: AreaKind) -> Option<PaperCell> {
     PAPER_TABLE_1
@@ -857,7 +1081,7 @@ fn paper_cell(model: &str, area: AreaKind) -> Option<PaperCell> {
         .and_then(|(_, a)| a.get(area.code() as usize).copied())
 }
 
-fn report(p: &Pipeline, cells: &[Evaluated]) -> anyhow::Result<String> {
+fn report(p: &Pipeline, cells: &[Evaluated], selections: &[Selection]) -> anyhow::Result<String> {
     let mut md = String::from("# lavatube reproduce\n\n");
     md += "The paper's pipeline (SPEC S6-S8) regenerated by `lavatube reproduce`; the resolved \
            config is `config.toml` beside this report.\n\n## Table 1: success rate and reach time\n\n";
@@ -884,6 +1108,7 @@ fn report(p: &Pipeline, cells: &[Evaluated]) -> anyhow::Result<String> {
         );
     }
     md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
+    md += &selection_table(selections, r.validation_episodes);
     let analysis = p.stage_dir("d-analysis");
     let table3 = std::fs::read_to_string(analysis.join("results.md"))
         .with_context(|| format!("cannot read {}", analysis.join("results.md").display()))?;
