@@ -8,6 +8,8 @@
 //! d. `d-analysis`: Table 3 and Figs. 5–8 (`estimator-proc analyze`);
 //! e. `e-specialists`: FTM and RTM fine-tuned from (b) at once, each on the transitions the
 //!    estimator (not the true area) assigns to its terrain, acting by switching (SPEC S8);
+//!    `e-select` (with `reproduce.specialist-candidates`): each specialist is the best on its
+//!    own terrain's validation courses of the general model and stage e's milestones;
 //! f. `f-eval`: success rate and reach time of general, FTM and RTM in each area (Table 1),
 //!    and of switching between FTM and RTM on stage d's terrain mixture, every model on the
 //!    same seeded courses (`EpisodeStart::Course`);
@@ -285,7 +287,7 @@ impl Pipeline {
         let every = self.milestone_every() as u64;
         let all = self.checkpoints("e-specialists", slot)?;
         let last = all.len() - 1;
-        let mut tried = vec![("general".to_string(), general.to_path_buf())];
+        let mut tried = vec![(GENERAL.to_string(), general.to_path_buf())];
         tried.extend(
             all.into_iter()
                 .enumerate()
@@ -294,23 +296,21 @@ impl Pipeline {
         );
         let courses = self.validation_courses();
         let mut candidates = Vec::new();
-        let mut ranks = Vec::new();
+        let mut cells = Vec::new();
         for (k, (label, checkpoint)) in tried.into_iter().enumerate() {
             let weights = dir.join(format!("{}-{k}.policy", model.to_lowercase()));
             self.export(&checkpoint, &weights)?;
             let name = format!("{model}-{}", label.replace(' ', "-"));
             let tried = self.evaluate_policy(&name, &weights, area, courses, &dir)?;
             let cell = Cell::of(&tried.legs, self.base.sim.decision_dt());
-            ranks.push(rank(&cell));
+            cells.push(cell);
             candidates.push(Candidate {
                 label,
                 checkpoint,
                 cell: Some(cell),
             });
         }
-        let chosen = (0..ranks.len())
-            .reduce(|best, k| if ranks[k] > ranks[best] { k } else { best })
-            .unwrap_or_default();
+        let chosen = best(&cells);
         self.say(&format!(
             "e-select: {model} is {} ({} candidates)",
             candidates[chosen].label,
@@ -693,6 +693,28 @@ impl Selection {
     }
 }
 
+/// Where stage `e-select` keeps its [`Selection`]s.
+const SELECTION_JSON: &str = "selection.json";
+
+/// The candidate that is the general model, before any fine-tuning.
+const GENERAL: &str = "general";
+
+/// Stage `e-select`'s choice, if it finished.
+fn chosen_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Selection>>> {
+    if !p.done("e-select") {
+        return Ok(None);
+    }
+    let path = p.stage_dir("e-select").join(SELECTION_JSON);
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text).map(Some).with_context(|| {
+        format!(
+            "{} is not stage e's selection: remove its directory to select again",
+            path.display()
+        )
+    })
+}
+
 /// FTM and RTM (SPEC S8): stage e's last checkpoints, or with `specialist-candidates` the
 /// ones stage `e-select` validates best ([`Pipeline::select`]), chosen once and kept.
 fn specialists(p: &Pipeline) -> anyhow::Result<Vec<Selection>> {
@@ -718,17 +740,10 @@ fn specialists(p: &Pipeline) -> anyhow::Result<Vec<Selection>> {
             })
             .collect();
     }
-    let path = p.stage_dir("e-select").join("selection.json");
-    if p.done("e-select") {
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        return serde_json::from_str(&text).with_context(|| {
-            format!(
-                "{} is not stage e's selection: remove its directory to select again",
-                path.display()
-            )
-        });
+    if let Some(chosen) = chosen_before(p)? {
+        return Ok(chosen);
     }
+    let path = p.stage_dir("e-select").join(SELECTION_JSON);
     std::fs::create_dir_all(p.fresh("e-select")?)?;
     p.say("e-select: each specialist's candidates on validation courses of its terrain");
     let general = p.checkpoint("b-general", PolicySlot::General)?;
@@ -852,6 +867,20 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
                 pm(&faster, 2)
             },
             verdicts.join("; ")
+        );
+    }
+    let mut chosen = String::new();
+    for (p, _) in runs {
+        for s in chosen_before(p)?.into_iter().flatten() {
+            chosen += &format!(
+                "| {} | {} | {} |\n",
+                p.base.run.seed, s.model, s.candidates[s.chosen].label
+            );
+        }
+    }
+    if !chosen.is_empty() {
+        md += &format!(
+            "\n## Specialists chosen on validation courses (stage e)\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
         );
     }
     md +=
@@ -990,6 +1019,20 @@ fn checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> Vec<Che
     out
 }
 
+/// The index of the best of `cells` by [`rank`], the first of equals (the least fine-tuned
+/// candidate, in [`Pipeline::select`]'s order).
+fn best(cells: &[Cell]) -> usize {
+    (0..cells.len())
+        .reduce(|b, k| {
+            if rank(&cells[k]) > rank(&cells[b]) {
+                k
+            } else {
+                b
+            }
+        })
+        .unwrap_or_default()
+}
+
 /// Orders cells by success rate, then by shorter mean reach time.
 fn rank(c: &Cell) -> f64 {
     c.success_pct() * 1e3 - c.mean_reach_s.min(999.0)
@@ -1107,6 +1150,15 @@ fn report(p: &Pipeline, cells: &[Evaluated], selections: &[Selection]) -> anyhow
             cell.reach()
         );
     }
+    for s in selections {
+        if s.candidates[s.chosen].label == GENERAL {
+            md += &format!(
+                "\n{} is the general model: no checkpoint of its fine-tuning drove {} ground better on the validation courses (stage e, below).\n",
+                s.model,
+                s.area.name()
+            );
+        }
+    }
     md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
     md += &selection_table(selections, r.validation_episodes);
     let analysis = p.stage_dir("d-analysis");
@@ -1205,6 +1257,48 @@ mod tests {
         std::fs::write(&csv, "env,episode\n0,x\n").expect("write");
         let e = format!("{:#}", legs_in(&csv).expect_err("layout"));
         assert!(e.contains("t.csv: row 1"), "{e}");
+    }
+
+    #[test]
+    fn the_best_candidate_succeeds_most_then_reaches_soonest_then_trained_least() {
+        let cell = |successes, mean_reach_s| Cell {
+            episodes: 100,
+            successes,
+            mean_reach_s,
+            std_reach_s: 1.0,
+        };
+        // Success first, however slow: 91 of 100 beats 90 of 100 reached sooner.
+        assert_eq!(best(&[cell(90, 3.0), cell(91, 4.0), cell(91, 3.5)]), 2);
+        // All at 100 %: the soonest.
+        assert_eq!(best(&[cell(100, 3.2), cell(100, 3.1), cell(100, 3.3)]), 1);
+        // A tie keeps the first (the general model before any fine-tuning).
+        assert_eq!(best(&[cell(100, 3.2), cell(100, 3.2)]), 0);
+        // No candidate reached a target: the first.
+        assert_eq!(best(&[cell(0, 0.0), cell(0, 0.0)]), 0);
+    }
+
+    #[test]
+    fn milestones_spread_over_the_fine_tuning() {
+        let mut base = Config::default();
+        base.reproduce.finetune_steps = 2_000_000;
+        base.reproduce.specialist_candidates = 4;
+        let every = |base: &Config| {
+            Pipeline {
+                base: base.clone(),
+                out: PathBuf::new(),
+                quiet: true,
+            }
+            .milestone_every()
+        };
+        // 976 updates of 2,048 transitions: milestones at 244, 488, 732 and 976.
+        assert_eq!(every(&base), 244);
+        // Only written checkpoints can be kept: the next multiple of checkpoint-every.
+        base.ppo.checkpoint_every = 5;
+        assert_eq!(every(&base), 245);
+        base.ppo.checkpoint_every = 1;
+        base.reproduce.specialist_candidates = 100;
+        base.reproduce.finetune_steps = 4096;
+        assert_eq!(every(&base), 1);
     }
 
     #[test]
