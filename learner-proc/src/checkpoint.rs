@@ -413,6 +413,8 @@ mod tests {
         cfg.ppo.epochs = 1;
         cfg.ppo.keep_checkpoints = keep;
         cfg.ppo.milestone_every = milestone_every;
+        // Every update trains on the same rollout, however many versions old it gets.
+        cfg.ppo.max_policy_lag = 1000;
         let mut l = learner(&cfg, 21);
         let r = OwnedRollout::acted_by(&l, 64, 4, 22);
         for _ in 0..updates {
