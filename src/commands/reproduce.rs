@@ -258,8 +258,10 @@ impl Pipeline {
 
     /// The newest checkpoint of stage `name`'s learner for `slot`.
     fn checkpoint(&self, name: &str, slot: PolicySlot) -> anyhow::Result<PathBuf> {
-        let mut all = self.checkpoints(name, slot)?;
-        Ok(all.pop().map(|(_, p)| p).unwrap_or_default())
+        let newest = self.checkpoints(name, slot)?.pop();
+        newest
+            .map(|(_, p)| p)
+            .with_context(|| format!("stage {name} left no checkpoint"))
     }
 
     /// Stage e's `ppo.milestone-every`: `reproduce.specialist-candidates` milestones spread
