@@ -945,6 +945,9 @@ pub struct ReproduceConfig {
     pub general_steps: u64,
     /// (c) Decision steps per env collected with the general model. 1 ..= 10^6. Default 500 (SPEC S7).
     pub collect_steps: u64,
+    /// (c) Envs per area of the collection. 1 ..= 512. Default unset: `envs-per-area`. More
+    /// robots make Table 3 depend less on what the few of them happened to drive over.
+    pub collect_envs: Option<usize>,
     /// (e) Environment steps of the FTM/RTM fine-tuning, from (b). 1 ..= 10^10. Default 500 k.
     pub finetune_steps: u64,
     /// (f) Episodes per model × area cell. 1 ..= 10^6. Default 200.
@@ -987,6 +990,7 @@ impl Default for ReproduceConfig {
             envs_per_area: 4,
             general_steps: 2_500_000,
             collect_steps: 500,
+            collect_envs: None,
             finetune_steps: 500_000,
             eval_episodes: 200,
             eval_envs: 8,
@@ -1291,6 +1295,9 @@ impl Config {
         count_in("reproduce.flat-envs", p.flat_envs, 1, 1024)?;
         count_in("reproduce.envs-per-area", p.envs_per_area, 1, 512)?;
         count_in("reproduce.eval-envs", p.eval_envs, 1, 1024)?;
+        if let Some(n) = p.collect_envs {
+            count_in("reproduce.collect-envs", n, 1, 512)?;
+        }
         count_in(
             "reproduce.specialist-candidates",
             p.specialist_candidates,
@@ -1492,6 +1499,11 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "config field `ppo.milestone-every` = 10: must be a multiple of ppo.checkpoint-every (4): only written checkpoints can be kept"
+        );
+        let e = parse("[reproduce]\ncollect-envs = 0\n").expect_err("no robots");
+        assert_eq!(
+            e.to_string(),
+            "config field `reproduce.collect-envs` = 0: must be in [1, 512]"
         );
         let e = parse("[reproduce]\nspecialist-candidates = 101\n").expect_err("range");
         assert!(

@@ -575,12 +575,8 @@ fn pipeline(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     if !p.done("c-collect") {
         std::fs::create_dir_all(p.fresh("c-collect")?)?;
         p.say("c-collect: the general model in both areas (SPEC S7)");
-        p.drive(
-            &p.envs(r.envs_per_area, r.envs_per_area),
-            &general,
-            r.collect_steps,
-            &traces,
-        )?;
+        let n = r.collect_envs.unwrap_or(r.envs_per_area);
+        p.drive(&p.envs(n, n), &general, r.collect_steps, &traces)?;
         p.finish("c-collect", serde_json::json!({ "traces": traces }))?;
     }
 
