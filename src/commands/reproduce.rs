@@ -276,8 +276,7 @@ impl Pipeline {
 
     /// Early stopping for the specialist `model`, fine-tuned in stage e by the learner of
     /// `slot`: the general model (`general`, no fine-tuning), stage e's milestones and its
-    /// last checkpoint each drive validation courses in `area`; the best by [`rank`] wins,
-    /// the least fine-tuned on a tie.
+    /// last checkpoint each drive validation courses in `area`; the [`best`] wins.
     fn select(
         &self,
         model: &str,
@@ -298,21 +297,20 @@ impl Pipeline {
         );
         let courses = self.validation_courses();
         let mut candidates = Vec::new();
-        let mut cells = Vec::new();
+        let mut legs = Vec::new();
         for (k, (label, checkpoint)) in tried.into_iter().enumerate() {
             let weights = dir.join(format!("{}-{k}.policy", model.to_lowercase()));
             self.export(&checkpoint, &weights)?;
             let name = format!("{model}-{}", label.replace(' ', "-"));
             let tried = self.evaluate_policy(&name, &weights, area, courses, &dir)?;
-            let cell = Cell::of(&tried.legs, self.base.sim.decision_dt());
-            cells.push(cell);
             candidates.push(Candidate {
                 label,
                 checkpoint,
-                cell: Some(cell),
+                cell: Some(Cell::of(&tried.legs, self.base.sim.decision_dt())),
             });
+            legs.push(tried.legs);
         }
-        let chosen = best(&cells);
+        let chosen = best(&legs, self.base.reproduce.margin_pp);
         self.say(&format!(
             "e-select: {model} is {} ({} candidates)",
             candidates[chosen].label,
@@ -1017,18 +1015,44 @@ fn checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> Vec<Che
     out
 }
 
-/// The index of the best of `cells` by [`rank`], the first of equals (the least fine-tuned
-/// candidate, in [`Pipeline::select`]'s order).
-fn best(cells: &[Cell]) -> usize {
-    (0..cells.len())
-        .reduce(|b, k| {
-            if rank(&cells[k]) > rank(&cells[b]) {
-                k
-            } else {
-                b
+/// The legs every one of `legs` drove (same part, env and leg index): per leg, each one's
+/// outcome, in the order of `legs`.
+fn common_legs(legs: &[&Legs]) -> Vec<Vec<Option<u32>>> {
+    let shortest = |len: &dyn Fn(&Legs) -> usize| legs.iter().map(|l| len(l)).min().unwrap_or(0);
+    let mut out = Vec::new();
+    for part in 0..shortest(&|l| l.len()) {
+        for env in 0..shortest(&|l| l[part].len()) {
+            for leg in 0..shortest(&|l| l[part][env].len()) {
+                out.push(legs.iter().map(|l| l[part][env][leg]).collect());
             }
-        })
-        .unwrap_or_default()
+        }
+    }
+    out
+}
+
+/// The best of several models' `legs` on the same courses: among those whose success rate
+/// on the legs all drove is within `margin_pp` of the highest (closer is noise at validation
+/// sizes), the one with the shortest mean reach time on the legs all of those reached; the
+/// first of equals (the least fine-tuned candidate, in [`Pipeline::select`]'s order).
+fn best(legs: &[Legs], margin_pp: f64) -> usize {
+    let all: Vec<&Legs> = legs.iter().collect();
+    let driven = common_legs(&all);
+    let success: Vec<f64> = (0..legs.len())
+        .map(|k| 100.0 * driven.iter().filter(|l| l[k].is_some()).count() as f64)
+        .map(|s| s / driven.len().max(1) as f64)
+        .collect();
+    let top = success.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let near: Vec<usize> = (0..legs.len())
+        .filter(|&k| success[k] >= top - margin_pp)
+        .collect();
+    let reached: Vec<Vec<u32>> = common_legs(&near.iter().map(|&k| &legs[k]).collect::<Vec<_>>())
+        .into_iter()
+        .filter_map(|leg| leg.into_iter().collect())
+        .collect();
+    let reach = |i: usize| reached.iter().map(|r| u64::from(r[i])).sum::<u64>();
+    (0..near.len())
+        .reduce(|b, i| if reach(i) < reach(b) { i } else { b })
+        .map_or(0, |i| near[i])
 }
 
 /// Orders cells by success rate, then by shorter mean reach time.
@@ -1055,11 +1079,9 @@ struct Paired {
 
 impl Paired {
     fn of(x: &Legs, y: &Legs, decision_dt: f64) -> Self {
-        let pairs: Vec<(Option<u32>, Option<u32>)> = x
-            .iter()
-            .zip(y)
-            .flat_map(|(px, py)| px.iter().zip(py))
-            .flat_map(|(ex, ey)| ex.iter().copied().zip(ey.iter().copied()))
+        let pairs: Vec<(Option<u32>, Option<u32>)> = common_legs(&[x, y])
+            .into_iter()
+            .map(|l| (l[0], l[1]))
             .collect();
         let pct = |o: Option<u32>| if o.is_some() { 100.0 } else { 0.0 };
         let differences: Vec<f64> = pairs.iter().map(|&(a, b)| pct(a) - pct(b)).collect();
@@ -1092,7 +1114,7 @@ fn selection_table(selections: &[Selection], episodes: u64) -> String {
         return String::new();
     }
     let mut md = format!(
-        "\n## Specialists chosen on validation courses (stage e)\n\nEach specialist is the candidate that did best on its own terrain over validation courses (about {episodes} episodes each, seeds apart from the evaluation's): the general model it was fine-tuned from, or a checkpoint of its fine-tuning (`reproduce.specialist-candidates`). Best = highest success rate, then shortest mean reach time.\n\n| model | area | candidate | success % (episodes) | reach s, mean (std) | chosen |\n|---|---|---|---:|---:|:---:|\n"
+        "\n## Specialists chosen on validation courses (stage e)\n\nEach specialist is the candidate that did best on its own terrain over validation courses (about {episodes} episodes each, seeds apart from the evaluation's): the general model it was fine-tuned from, or a checkpoint of its fine-tuning (`reproduce.specialist-candidates`). Best = the shortest reach time among those within `margin-pp` of the highest success rate, each measured on the legs all of them drove or reached (the table shows each candidate's own legs).\n\n| model | area | candidate | success % (episodes) | reach s, mean (std) | chosen |\n|---|---|---|---:|---:|:---:|\n"
     );
     for s in selections {
         for (k, c) in s.candidates.iter().enumerate() {
@@ -1258,21 +1280,28 @@ mod tests {
     }
 
     #[test]
-    fn the_best_candidate_succeeds_most_then_reaches_soonest_then_trained_least() {
-        let cell = |successes, mean_reach_s| Cell {
-            episodes: 100,
-            successes,
-            mean_reach_s,
-            std_reach_s: 1.0,
-        };
-        // Success first, however slow: 91 of 100 beats 90 of 100 reached sooner.
-        assert_eq!(best(&[cell(90, 3.0), cell(91, 4.0), cell(91, 3.5)]), 2);
-        // All at 100 %: the soonest.
-        assert_eq!(best(&[cell(100, 3.2), cell(100, 3.1), cell(100, 3.3)]), 1);
-        // A tie keeps the first (the general model before any fine-tuning).
-        assert_eq!(best(&[cell(100, 3.2), cell(100, 3.2)]), 0);
+    fn the_best_candidate_succeeds_within_the_margin_then_reaches_soonest() {
+        // One part, one env, ten legs; `None` failed.
+        let legs = |l: &[Option<u32>]| -> Legs { vec![vec![l.to_vec()]] };
+        let all = |t: u32| vec![Some(t); 10];
+        let mut nine = all(30);
+        nine[9] = None;
+        // 100 % at 40 steps against 90 % at 30: 10 pp apart, success wins.
+        assert_eq!(best(&[legs(&nine), legs(&all(40))], 1.0), 1);
+        // Within a 10 pp margin the sooner wins, timed on the legs both reached (the failed
+        // leg is left out of both: a 99-step leg there does not count against the first).
+        let mut slow_last = all(30);
+        slow_last[9] = Some(99);
+        assert_eq!(best(&[legs(&slow_last), legs(&nine)], 10.0), 0);
+        assert_eq!(best(&[legs(&all(31)), legs(&nine)], 10.0), 1);
+        // Equals keep the first (the general model before any fine-tuning).
+        assert_eq!(best(&[legs(&all(30)), legs(&all(30))], 1.0), 0);
+        // Legs only one model drove (it drove more) do not count.
+        let mut longer = all(30);
+        longer.extend([Some(1); 5]);
+        assert_eq!(best(&[legs(&all(30)), legs(&longer)], 1.0), 0);
         // No candidate reached a target: the first.
-        assert_eq!(best(&[cell(0, 0.0), cell(0, 0.0)]), 0);
+        assert_eq!(best(&[legs(&[None; 4]), legs(&[None; 4])], 1.0), 0);
     }
 
     #[test]
