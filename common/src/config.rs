@@ -209,9 +209,10 @@ impl Default for RunConfig {
 
 /// Which area an env lives in: SPEC S1's two training areas, or the mixed course (our
 /// extension, for issue 7's switching evaluation), flat ground that turns rough part-way.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AreaKind {
+    #[default]
     Flat,
     Rough,
     Mixed,

@@ -3,8 +3,8 @@
 
 use serde::{Deserialize, Serialize};
 
-/// One env at one decision tick.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// One env at one decision tick (`Default`: env 0 standing at the origin of flat ground).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct TelemetryRow {
     /// Env index.
     pub env: u32,

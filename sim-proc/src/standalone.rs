@@ -298,24 +298,7 @@ mod tests {
     fn row(env: u32) -> TelemetryRow {
         TelemetryRow {
             env,
-            tick: 0,
-            area: common::AreaKind::Flat,
-            episode: 0,
-            x: 0.0,
-            y: 0.0,
-            z: 0.0,
-            theta_x: 0.0,
-            theta_y: 0.0,
-            theta_z: 0.0,
-            sin_pitch: 0.0,
-            action_left: 0.0,
-            action_right: 0.0,
-            reward: 0.0,
-            terminated: false,
-            truncated: false,
-            success: false,
-            target_x: 0.0,
-            target_z: 0.0,
+            ..Default::default()
         }
     }
 

@@ -1220,23 +1220,11 @@ mod tests {
             w.serialize(common::TelemetryRow {
                 env,
                 tick: tick as u64,
-                area: AreaKind::Flat,
                 episode,
-                x: 0.0,
-                y: 0.0,
-                z: 0.0,
-                theta_x: 0.0,
-                theta_y: 0.0,
-                theta_z: 0.0,
-                sin_pitch: 0.0,
-                action_left: 0.0,
-                action_right: 0.0,
-                reward: 0.0,
                 terminated: ending == Some(true),
                 truncated: ending == Some(false),
                 success: ending == Some(true),
-                target_x: 0.0,
-                target_z: 0.0,
+                ..Default::default()
             })
             .expect("row");
         }
