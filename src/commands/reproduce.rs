@@ -302,13 +302,13 @@ impl Pipeline {
             let weights = dir.join(format!("{}-{k}.policy", model.to_lowercase()));
             self.export(&checkpoint, &weights)?;
             let name = format!("{model}-{}", label.replace(' ', "-"));
-            let tried = self.evaluate_policy(&name, &weights, area, courses, &dir)?;
+            let driven = self.evaluate_policy(&name, &weights, area, courses, &dir)?;
             candidates.push(Candidate {
                 label,
                 checkpoint,
-                cell: Some(Cell::of(&tried.legs, self.base.sim.decision_dt())),
+                cell: Some(Cell::of(&driven.legs, self.base.sim.decision_dt())),
             });
-            legs.push(tried.legs);
+            legs.push(driven.legs);
         }
         let chosen = best(&legs, self.base.reproduce.margin_pp);
         self.say(&format!(
@@ -866,7 +866,11 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
         );
     }
     let mut chosen = String::new();
-    for (p, _) in runs {
+    // None without `specialist-candidates`, whatever an earlier config left in `e-select`.
+    for (p, _) in runs
+        .iter()
+        .filter(|(p, _)| p.base.reproduce.specialist_candidates > 0)
+    {
         for s in chosen_before(p)?.into_iter().flatten() {
             chosen += &format!(
                 "| {} | {} | {} |\n",
