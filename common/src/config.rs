@@ -537,6 +537,16 @@ pub struct TaskConfig {
     pub max_target_draws: usize,
     /// Where episodes start: "chained" (SPEC S3) or "course" (paired evaluation). Default "chained".
     pub episodes: EpisodeStart,
+    /// Not the paper's (SPEC S3 extension): a robot that has stayed within `stall-distance`
+    /// of one spot for this many decision steps of an episode has stalled: the episode ends
+    /// as a failure (terminal, like PED's) and the robot is respawned. Without it, a policy
+    /// that stops on rough ground sees a truncation bootstrapped from the very state it sits
+    /// in, so stopping costs it almost nothing and it may never learn to leave. 0 = off (the
+    /// paper's rules). 0 ..= 100000. Default 0.
+    pub stall_steps: u32,
+    /// The stall rule's radius, metres: moving farther than this from where the robot stood
+    /// restarts the count. (0, 10]. Default 0.02.
+    pub stall_distance: f64,
 }
 
 /// Where an env's next episode starts.
@@ -573,6 +583,8 @@ impl Default for TaskConfig {
             progress_scale: 100.0,
             max_target_draws: 1000,
             episodes: EpisodeStart::Chained,
+            stall_steps: 0,
+            stall_distance: 0.02,
         }
     }
 }
@@ -1188,6 +1200,8 @@ impl Config {
         in_range("sim.task.leave-margin", k.leave_margin, 0.0, 100.0)?;
         in_range("sim.task.tip-limit-deg", k.tip_limit_deg, 1.0, 180.0)?;
         in_range("sim.task.progress-scale", k.progress_scale, 0.0, 1e6)?;
+        count_in("sim.task.stall-steps", k.stall_steps as usize, 0, 100_000)?;
+        in_range("sim.task.stall-distance", k.stall_distance, 1e-6, 10.0)?;
         count_in(
             "sim.task.max-target-draws",
             k.max_target_draws,

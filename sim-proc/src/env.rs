@@ -382,6 +382,34 @@ mod tests {
         assert_eq!(good.step([1.0, 1.0]).faults, 0);
     }
 
+    #[test]
+    fn a_robot_that_stands_still_stalls_and_is_respawned_one_that_drives_does_not() {
+        let mut cfg = SimConfig::default();
+        cfg.task.stall_steps = 20;
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut env = Env::new(0, &cfg, &terrain, 4);
+        let spot = env.pose().pos;
+        let endings: Vec<_> = (0..20).map(|_| env.step([0.0, 0.0]).ending).collect();
+        assert!(endings[..19].iter().all(Option::is_none), "{endings:?}");
+        assert_eq!(endings[19], Some(Ending::Stalled));
+        let moved = env.pose().pos;
+        assert!(
+            (moved[0] - spot[0]).hypot(moved[2] - spot[2]) > 0.05,
+            "not respawned"
+        );
+        // The scripted controller drives to its targets and never stands still that long.
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        let mut successes = 0;
+        for _ in 0..1500 {
+            match env.step(goto.act(0, &env.observe())).ending {
+                Some(Ending::Success) => successes += 1,
+                Some(Ending::Stalled) => panic!("a driving robot stalled"),
+                _ => {}
+            }
+        }
+        assert!(successes >= 10, "{successes} successes");
+    }
+
     /// The legs (start, target) an env drives in its first `legs` episodes under `act`.
     fn legs(cfg: &SimConfig, legs: u64, mut act: impl FnMut(&Env) -> [f32; 2]) -> Vec<[f64; 4]> {
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));

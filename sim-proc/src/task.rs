@@ -55,6 +55,9 @@ pub enum Ending {
     TooFar,
     /// Out of the area or tipped over (terminal failure, respawn).
     LeftOrTipped,
+    /// Stood within `stall-distance` of one spot for `stall-steps` (terminal failure, respawn;
+    /// not the paper's rule, off by default).
+    Stalled,
     /// MES reached (truncation: bootstrap the value).
     TimeLimit,
     /// Non-finite physics (truncation, respawn).
@@ -65,7 +68,7 @@ impl Ending {
     pub fn terminated(self) -> bool {
         matches!(
             self,
-            Ending::Success | Ending::TooFar | Ending::LeftOrTipped
+            Ending::Success | Ending::TooFar | Ending::LeftOrTipped | Ending::Stalled
         )
     }
 
@@ -75,7 +78,7 @@ impl Ending {
 
     /// Whether the robot must be put back at a random pose in its area (SPEC S3).
     pub fn respawns(self) -> bool {
-        matches!(self, Ending::LeftOrTipped | Ending::Fault)
+        matches!(self, Ending::LeftOrTipped | Ending::Stalled | Ending::Fault)
     }
 }
 
@@ -93,6 +96,9 @@ pub struct Episode {
     /// Bit j−1 set when the circle of radius jΔ has paid.
     paid: u8,
     sum_cos_pitch: f64,
+    /// The stall rule's spot and the step the robot was last seen leaving it.
+    spot: [f64; 2],
+    spot_step: u32,
 }
 
 /// What one step of an episode produced.
@@ -114,6 +120,8 @@ impl Episode {
             k: 0,
             paid: 0,
             sum_cos_pitch: 0.0,
+            spot: start,
+            spot_step: 0,
         }
     }
 
@@ -140,6 +148,11 @@ impl Episode {
                 reward += progress_reward(cfg, dist(pos, self.start));
             }
         }
+        if dist(pos, self.spot) > cfg.stall_distance {
+            (self.spot, self.spot_step) = (pos, self.steps);
+        }
+        // SPEC S3 extension: a stall ends the episode as a failure, terminal like PED's.
+        let stalled = cfg.stall_steps > 0 && self.steps - self.spot_step >= cfg.stall_steps;
         let ending = if d < cfg.delta {
             let mean_cos = self.sum_cos_pitch / self.steps as f64;
             reward += final_reward(cfg, self.initial_distance, mean_cos, self.steps);
@@ -148,6 +161,8 @@ impl Episode {
             Some(Ending::LeftOrTipped)
         } else if d > penalty_distance(cfg, self.initial_distance, self.k) {
             Some(Ending::TooFar)
+        } else if stalled {
+            Some(Ending::Stalled)
         } else if self.steps >= self.mes {
             Some(Ending::TimeLimit)
         } else {
@@ -280,6 +295,36 @@ mod tests {
         assert!(
             Ending::TooFar.terminated() && Ending::Fault.respawns() && Ending::Fault.truncated()
         );
+    }
+
+    #[test]
+    fn spec_s3_extension_a_stall_ends_the_episode_and_respawns() {
+        let c = TaskConfig {
+            stall_steps: 3,
+            stall_distance: 0.02,
+            ..cfg()
+        };
+        let mut e = Episode::new(&c, [0.0, 0.0], [0.3, 0.0]);
+        // Creeping 1.5 cm stays on the spot; the third step there is a stall.
+        assert_eq!(e.step(&c, [0.01, 0.0], 1.0, false).ending, None);
+        assert_eq!(e.step(&c, [0.015, 0.0], 1.0, false).ending, None);
+        let end = e.step(&c, [0.015, 0.0], 1.0, false).ending;
+        assert_eq!(end, Some(Ending::Stalled));
+        assert!(Ending::Stalled.terminated() && Ending::Stalled.respawns());
+        // Leaving the spot (2.5 cm) restarts the count from there.
+        let mut e = Episode::new(&c, [0.0, 0.0], [0.3, 0.0]);
+        e.step(&c, [0.0, 0.0], 1.0, false);
+        e.step(&c, [0.025, 0.0], 1.0, false);
+        assert_eq!(e.step(&c, [0.025, 0.0], 1.0, false).ending, None);
+        assert_eq!(e.step(&c, [0.03, 0.0], 1.0, false).ending, None);
+        assert_eq!(
+            e.step(&c, [0.03, 0.0], 1.0, false).ending,
+            Some(Ending::Stalled)
+        );
+        // Off (the paper's rules): standing still only runs into MES.
+        let c = cfg();
+        let mut e = Episode::new(&c, [0.0, 0.0], [0.3, 0.0]);
+        assert!((0..100).all(|_| e.step(&c, [0.0, 0.0], 1.0, false).ending.is_none()));
     }
 
     #[test]
