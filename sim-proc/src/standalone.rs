@@ -81,6 +81,8 @@ pub struct Summary {
     pub ticks: u64,
     pub episodes: u64,
     pub successes: u64,
+    /// Episodes ended by the stall rule (`sim.task.stall-steps`).
+    pub stalls: u64,
     pub faults: u64,
     /// Mean decision steps of successful episodes.
     pub mean_reach_steps: f64,
@@ -195,9 +197,13 @@ pub fn drive(
             sink(&telemetry_row(env, info))?;
             if let Some(end) = info.ending {
                 s.episodes += 1;
-                if end == crate::task::Ending::Success {
-                    s.successes += 1;
-                    reach_steps += u64::from(info.episode_steps);
+                match end {
+                    crate::task::Ending::Success => {
+                        s.successes += 1;
+                        reach_steps += u64::from(info.episode_steps);
+                    }
+                    crate::task::Ending::Stalled => s.stalls += 1,
+                    _ => {}
                 }
             }
         }
@@ -274,6 +280,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         ticks = summary.ticks,
         episodes = summary.episodes,
         successes = summary.successes,
+        stalls = summary.stalls,
         faults = summary.faults,
         decision_steps_per_s,
         "done"
@@ -294,6 +301,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::config::SimConfig;
 
     fn row(env: u32) -> TelemetryRow {
         TelemetryRow {
@@ -327,5 +335,29 @@ mod tests {
         }
         // The second create dropped the first's row; the appends kept it, under one header.
         assert_eq!(envs_in(&path), vec![2, 3, 4]);
+    }
+
+    /// Sends the wheels nothing: the robot stands where it landed.
+    struct Idle;
+
+    impl Controller for Idle {
+        fn act(&mut self, _env: usize, _obs: &[f32; OBS_DIM]) -> [f32; 2] {
+            [0.0; 2]
+        }
+    }
+
+    #[test]
+    fn the_summary_counts_stalls() {
+        let mut cfg = SimConfig {
+            flat_envs: 2,
+            threads: 1,
+            ..SimConfig::default()
+        };
+        cfg.task.stall_steps = 10;
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut batch = Batch::new(&cfg, &terrain, 2);
+        let s = drive(&mut batch, &mut Idle, 35, |_| Ok(())).expect("drive");
+        // Each robot stalls at steps 10, 20 and 30 and never reaches a target.
+        assert_eq!((s.episodes, s.stalls, s.successes), (6, 6, 0));
     }
 }
