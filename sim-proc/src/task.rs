@@ -96,7 +96,7 @@ pub struct Episode {
     /// Bit j−1 set when the circle of radius jΔ has paid.
     paid: u8,
     sum_cos_pitch: f64,
-    /// The stall rule's spot and the step the robot was last seen leaving it.
+    /// The stall rule's spot: where the robot last moved to, and the step it got there.
     spot: [f64; 2],
     spot_step: u32,
 }
