@@ -695,6 +695,9 @@ const SELECTION_JSON: &str = "selection.json";
 /// The candidate that is the general model, before any fine-tuning.
 const GENERAL: &str = "general";
 
+/// The heading of the specialists' choice, in a run's report and in the seeds report.
+const SELECTION_HEADING: &str = "## Specialists chosen on validation courses (stage e)";
+
 /// Stage `e-select`'s choice, if it finished.
 fn chosen_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Selection>>> {
     if !p.done("e-select") {
@@ -880,7 +883,7 @@ fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
     }
     if !chosen.is_empty() {
         md += &format!(
-            "\n## Specialists chosen on validation courses (stage e)\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
+            "\n{SELECTION_HEADING}\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
         );
     }
     md +=
@@ -1118,7 +1121,7 @@ fn selection_table(selections: &[Selection], episodes: u64) -> String {
         return String::new();
     }
     let mut md = format!(
-        "\n## Specialists chosen on validation courses (stage e)\n\nEach specialist is the candidate that did best on its own terrain over validation courses (about {episodes} episodes each, seeds apart from the evaluation's): the general model it was fine-tuned from, or a checkpoint of its fine-tuning (`reproduce.specialist-candidates`). Best = the shortest reach time among those within `margin-pp` of the highest success rate, each measured on the legs all of them drove or reached (the table shows each candidate's own legs).\n\n| model | area | candidate | success % (episodes) | reach s, mean (std) | chosen |\n|---|---|---|---:|---:|:---:|\n"
+        "\n{SELECTION_HEADING}\n\nEach specialist is the candidate that did best on its own terrain over validation courses (about {episodes} episodes each, seeds apart from the evaluation's): the general model it was fine-tuned from, or a checkpoint of its fine-tuning (`reproduce.specialist-candidates`). Best = the shortest reach time among those within `margin-pp` of the highest success rate, each measured on the legs all of them drove or reached (the table shows each candidate's own legs).\n\n| model | area | candidate | success % (episodes) | reach s, mean (std) | chosen |\n|---|---|---|---:|---:|:---:|\n"
     );
     for s in selections {
         for (k, c) in s.candidates.iter().enumerate() {
