@@ -341,8 +341,8 @@ mod tests {
     struct Idle;
 
     impl Controller for Idle {
-        fn act(&mut self, _env: usize, _obs: &[f32; OBS_DIM]) -> [f32; 2] {
-            [0.0; 2]
+        fn act(&mut self, _env: usize, _obs: &[f32; OBS_DIM]) -> [f32; common::ACT_DIM] {
+            [0.0; common::ACT_DIM]
         }
     }
 
