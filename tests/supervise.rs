@@ -4,7 +4,7 @@
 
 use common::config::{Restart, RestartPolicy};
 use indicatif::ProgressBar;
-use lavatube::supervise::{self, Event, Proc, Slot, Spec};
+use lavatube::runtime::{Child, Event, Output, Role, Spec, Supervised, ladder};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -18,8 +18,14 @@ fn a_process_that_ignores_sigterm_is_killed_after_the_grace_period() {
     let logs = tempfile::tempdir().expect("tempdir");
     let bar = ProgressBar::hidden();
     let script = sh("trap '' TERM; echo ready; while :; do sleep 0.05; done");
-    let mut p =
-        Proc::spawn("fixture", Path::new("/bin/sh"), &script, logs.path(), &bar).expect("spawn");
+    let mut p = Child::spawn(
+        "fixture",
+        Path::new("/bin/sh"),
+        &script,
+        logs.path(),
+        Output::Relay(&bar),
+    )
+    .expect("spawn");
     let log = logs.path().join("fixture.log");
     let ready = Instant::now() + Duration::from_secs(30);
     while !std::fs::read_to_string(&log).is_ok_and(|t| t.contains("ready")) {
@@ -28,8 +34,8 @@ fn a_process_that_ignores_sigterm_is_killed_after_the_grace_period() {
     }
     let grace = Duration::from_millis(300);
     let started = Instant::now();
-    supervise::stop(&mut [&mut p], &|| {}, grace);
-    let status = p.status.expect("reaped");
+    ladder::stop(&mut [&mut p], &|| {}, grace);
+    let status = p.status().expect("reaped");
     assert_eq!(status.signal(), Some(libc::SIGKILL), "{status}");
     assert!(
         started.elapsed() >= 2 * grace,
@@ -42,7 +48,7 @@ fn a_failing_process_is_restarted_as_often_as_its_policy_allows() {
     let logs = tempfile::tempdir().expect("tempdir");
     let bar = ProgressBar::hidden();
     let spec = Spec {
-        name: "flaky",
+        role: Role::Estimator,
         bin: PathBuf::from("/bin/sh"),
         args: sh("echo started; exit 3"),
         policy: RestartPolicy {
@@ -51,7 +57,7 @@ fn a_failing_process_is_restarted_as_often_as_its_policy_allows() {
             backoff_ms: 10,
         },
     };
-    let mut slot = Slot::start(spec, logs.path(), &bar).expect("start");
+    let mut slot = Supervised::start(spec, logs.path(), &bar).expect("start");
     let mut events = Vec::new();
     let give_up = Instant::now() + Duration::from_secs(30);
     while slot.alive() {
@@ -82,6 +88,6 @@ fn a_failing_process_is_restarted_as_often_as_its_policy_allows() {
         ]
     );
     assert_eq!(slot.restarts, 2);
-    let log = std::fs::read_to_string(logs.path().join("flaky.log")).expect("log");
+    let log = std::fs::read_to_string(logs.path().join("estimator.log")).expect("log");
     assert_eq!(log, "started\n".repeat(3), "restarts append to one log");
 }

@@ -1,4 +1,4 @@
-//! DESIGN §3–§5 under faults, with real processes (issue 6): an async run on
+//! DESIGN §3–§5 under faults, with real processes: an async run on
 //! tests/fixtures/survival.toml whose learner is killed mid-update, restarted on a truncated
 //! checkpoint and swapped for one with another learning rate, whose estimator is killed, and
 //! which a process speaking another wire version tries to join; through all of it the

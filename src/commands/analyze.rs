@@ -1,7 +1,7 @@
 //! `lavatube analyze`: the paper's terrain analysis (SPEC S7) on recorded telemetry, run by
 //! the estimator's binary (the launcher links no process crate).
 
-use crate::supervise;
+use crate::runtime;
 use anyhow::Context;
 use std::process::ExitCode;
 
@@ -14,7 +14,7 @@ pub struct AnalyzeArgs {
 }
 
 pub fn analyze(args: AnalyzeArgs) -> anyhow::Result<ExitCode> {
-    let bin = supervise::locate("estimator-proc")?;
+    let bin = runtime::locate("estimator-proc")?;
     let status = std::process::Command::new(&bin)
         .arg("analyze")
         .args(&args.args)

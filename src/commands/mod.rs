@@ -1,4 +1,4 @@
-//! The subcommands, one file each.
+//! The subcommands, one module each, thin over [`crate::runtime`].
 
 mod analyze;
 mod bench;
@@ -9,28 +9,9 @@ mod run;
 mod status;
 mod swap;
 
+pub use crate::error::{EXIT_FAILURE, EXIT_USER, UserError, exit_code};
 use std::path::PathBuf;
 use std::process::ExitCode;
-
-/// Exit code for user errors (bad config, bad arguments, missing files).
-pub use common::cli::EXIT_USER;
-/// Exit code for failures of the system itself (a child process failed, shared memory broke).
-pub const EXIT_FAILURE: u8 = 2;
-
-/// An error the user can fix: reported as one line with exit code 1.
-#[derive(Debug, thiserror::Error)]
-#[error("{0}")]
-pub struct UserError(pub String);
-
-/// 1 for user and config errors, 2 for the rest.
-pub fn exit_code(e: &anyhow::Error) -> u8 {
-    if e.downcast_ref::<common::ConfigError>().is_some() || e.downcast_ref::<UserError>().is_some()
-    {
-        EXIT_USER
-    } else {
-        EXIT_FAILURE
-    }
-}
 
 /// lavatube: train and evaluate terrain-adaptive driving policies for lava-tube robots.
 #[derive(Debug, clap::Parser)]

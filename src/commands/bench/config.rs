@@ -72,7 +72,7 @@ const QUICK_MIN_CHUNKS: u64 = 2;
 const QUICK_ROLLOUT_TRANSITIONS: usize = 128;
 const QUICK_TRANSPORT_MESSAGES: usize = 300;
 
-/// One stage of the pipeline, each adding one piece to the previous (issue 8, item 1).
+/// One stage of the pipeline, each adding one piece to the previous.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Stage {
     /// a. physics alone: `sim-proc --controller random`, one process.

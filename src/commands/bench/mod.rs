@@ -1,4 +1,4 @@
-//! `lavatube bench`: where time goes, stage by stage, in one invocation (issue 8). For each
+//! `lavatube bench`: where time goes, stage by stage, in one invocation. For each
 //! env count and sim thread count it runs, on the same rough-ground envs and seed:
 //! a. physics alone, b. + policy inference, c. + publishing through iceoryx2 to a reader
 //! process, d. + the learner in sync mode, e. + the learner in async mode, f. + the estimator;
@@ -8,20 +8,19 @@
 //! Every stage runs the real binaries with the arguments `lavatube run` gives them, so the
 //! numbers are the runtime's own. The launcher only starts, watches and stops them.
 
-mod child;
 mod config;
 mod reader;
 mod report;
 mod stages;
 mod transport;
 
+pub use config::Plan;
 pub use reader::{ReaderArgs, reader};
 pub use transport::{EchoArgs, echo};
 
 use super::UserError;
 use anyhow::Context;
 use common::ipc::{self, Bus};
-use config::Plan;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -61,7 +60,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     }
-    let bins = stages::Bins::locate()?;
+    let bins = crate::runtime::Binaries::locate()?;
     let secs = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());
@@ -80,7 +79,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
     bar.enable_steady_tick(Duration::from_millis(200));
-    crate::supervise::say(
+    crate::runtime::say(
         &bar,
         format!(
             "bench {bench_id}: {} measurements and {} payloads → {}",
@@ -113,7 +112,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
             ));
             let row = stages::measure(&ctx, m)
                 .with_context(|| format!("stage {} ({})", m.stage.letter(), m.label()))?;
-            crate::supervise::say(
+            crate::runtime::say(
                 &bar,
                 format!(
                     "{:<26} {:>9.0} decision steps/s{}",

@@ -1,5 +1,5 @@
 //! The results: the stage table (throughput), the process table (CPU time and peak memory),
-//! the transport table (iceoryx2 versus the socket), the acceptance checks of issue 8, and
+//! the transport table (iceoryx2 versus the socket), the acceptance checks, and
 //! the same as JSON with the units in the key names and spelled out in `units`.
 
 use super::config::{Plan, Stage};
@@ -10,9 +10,9 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::PathBuf;
 
-/// Issue 8: publishing through iceoryx2 costs less than 5 % of the decision rate.
+/// Target: publishing through iceoryx2 costs less than 5 % of the decision rate.
 pub const PUBLISH_OVER_POLICY_TARGET: f64 = 0.95;
-/// Issue 8: env steps per second while learning (stages d and e), on a 2-core machine.
+/// Target: env steps per second while learning (stages d and e), on a 2-core machine.
 pub const LEARNING_TARGET: f64 = 4200.0;
 
 /// Where the numbers were taken: they mean little without the machine and its load.

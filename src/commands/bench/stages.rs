@@ -4,15 +4,14 @@
 //! the reader's tallies and latencies, the learner's metrics, every process's rusage.
 
 use super::Interrupted;
-use super::child::{Child, Usage};
 use super::config::{Measurement, Plan, Stage};
 use super::reader::ReaderResult;
+use crate::runtime::{Binaries, Child, Output, Role, Usage, ladder};
 use anyhow::{Context, bail};
-use common::config::LearnMode;
-use common::ipc::{self, Bus, Svc};
+use common::config::{LearnMode, PolicySlot};
+use common::ipc::{self, Bus};
 use common::wire::PolicyHeader;
 use common::{ACT_DIM, OBS_DIM, Policy, PolicyLayout, Rng};
-use iceoryx2::port::notifier::Notifier;
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -22,26 +21,6 @@ use std::time::{Duration, Instant};
 const POLL: Duration = Duration::from_millis(20);
 /// How long the reader may take to subscribe.
 const READY_TIMEOUT: Duration = Duration::from_secs(30);
-
-/// The binaries a measurement runs.
-pub struct Bins {
-    pub sim: PathBuf,
-    pub learner: PathBuf,
-    pub estimator: PathBuf,
-    /// This launcher, for `bench-reader` and `bench-echo`.
-    pub launcher: PathBuf,
-}
-
-impl Bins {
-    pub fn locate() -> anyhow::Result<Self> {
-        Ok(Self {
-            sim: crate::supervise::locate("sim-proc")?,
-            learner: crate::supervise::locate("learner-proc")?,
-            estimator: crate::supervise::locate("estimator-proc")?,
-            launcher: std::env::current_exe().context("cannot find the launcher's executable")?,
-        })
-    }
-}
 
 /// A policy in `common::policy`'s layout with random weights: what stage b evaluates and
 /// stage c publishes (from stage d on the learner publishes its own). Observation mean 0 and
@@ -86,7 +65,7 @@ impl RandomPolicy {
 /// What a measurement needs from the bench.
 pub struct Ctx<'a> {
     pub plan: &'a Plan,
-    pub bins: &'a Bins,
+    pub bins: &'a Binaries,
     /// The bench directory; each measurement gets a subdirectory.
     pub dir: &'a Path,
     pub bench_id: &'a str,
@@ -209,7 +188,7 @@ fn watch(
     loop {
         let mut done = true;
         for p in procs.iter_mut() {
-            let exited = p.poll()?;
+            let exited = p.poll()?.is_some();
             if let Some(f) = p.failure() {
                 bail!("{f}");
             }
@@ -230,34 +209,9 @@ fn watch(
     }
 }
 
-/// The runtime's stop ladder for processes that run until told: the shutdown event (repeated,
-/// as one sent before a process connected is lost), then SIGTERM, then SIGKILL, `grace` apart.
-fn stop(procs: &mut [Child], control: &Notifier<Svc>, grace: Duration) -> anyhow::Result<()> {
-    let all_exited = |procs: &mut [Child]| -> anyhow::Result<bool> {
-        let mut all = true;
-        for p in procs.iter_mut() {
-            all &= p.poll()?;
-        }
-        Ok(all)
-    };
-    let until = Instant::now() + grace;
-    while !all_exited(procs)? && Instant::now() < until {
-        ipc::request_shutdown(control)?;
-        std::thread::sleep(POLL);
-    }
-    for sig in [libc::SIGTERM, libc::SIGKILL] {
-        if all_exited(procs)? {
-            break;
-        }
-        for p in procs.iter() {
-            p.signal(sig);
-        }
-        let until = Instant::now() + grace;
-        while !all_exited(procs)? && Instant::now() < until {
-            std::thread::sleep(POLL);
-        }
-    }
-    Ok(())
+/// Starts one process of a measurement, its output straight into its log.
+fn spawn(ctx: &Ctx, role: Role, args: &[String], dir: &Path) -> anyhow::Result<Child> {
+    Child::spawn(role.name(), ctx.bins.of(role), args, dir, Output::File)
 }
 
 /// Runs one measurement in `<bench dir>/<label>/`.
@@ -311,7 +265,7 @@ pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
     row.wall_s = started.elapsed().as_secs_f64();
     row.physics_steps_per_s = row.decision_steps_per_s * cfg.sim.substeps as f64;
     for p in &procs {
-        if let Some((_, usage)) = p.exit {
+        if let Some(usage) = p.usage() {
             row.processes.insert(p.name, usage);
         }
     }
@@ -349,7 +303,7 @@ fn standalone(
             ctx.policy.path.display().to_string(),
         ]);
     }
-    let mut procs = vec![Child::spawn("sim", &ctx.bins.sim, &args, dir)?];
+    let mut procs = vec![spawn(ctx, Role::Sim, &args, dir)?];
     watch(ctx, &mut procs, &["sim"], deadline, &mut || Ok(()))?;
     let r: SimResult = read_json(&json)?;
     if r.ticks != row.ticks {
@@ -402,44 +356,34 @@ fn in_run(
         "--ready".into(),
         ready.display().to_string(),
     ];
-    let mut procs = vec![Child::spawn(
-        "reader",
-        &ctx.bins.launcher,
-        &reader_args,
-        dir,
-    )?];
+    let mut procs = vec![spawn(ctx, Role::Reader, &reader_args, dir)?];
     // Telemetry has no history: the sim starts only once the reader cannot miss a tick.
     let ready_by = (Instant::now() + READY_TIMEOUT).min(deadline);
     while !ready.exists() {
-        if procs[0].poll()? {
+        if procs[0].poll()?.is_some() {
             bail!(
                 "the reader exited before subscribing; log: {}",
-                procs[0].log.display()
+                procs[0].log().display()
             );
         }
         ctx.check_interrupt()?;
         if Instant::now() >= ready_by {
             bail!(
                 "the reader did not subscribe in time; log: {}",
-                procs[0].log.display()
+                procs[0].log().display()
             );
         }
         std::thread::sleep(POLL);
     }
     if m.stage == Stage::Estimator {
-        procs.push(Child::spawn(
-            "estimator",
-            &ctx.bins.estimator,
-            &join(Some("serve")),
-            dir,
-        )?);
+        procs.push(spawn(ctx, Role::Estimator, &join(Some("serve")), dir)?);
     }
     if m.stage.has_learner() {
         let mut a = join(Some("serve"));
         a.extend(["--out".into(), dir.display().to_string()]);
-        procs.push(Child::spawn("learner", &ctx.bins.learner, &a, dir)?);
+        procs.push(spawn(ctx, Role::Learner(PolicySlot::General), &a, dir)?);
     }
-    procs.push(Child::spawn("sim", &ctx.bins.sim, &join(None), dir)?);
+    procs.push(spawn(ctx, Role::Sim, &join(None), dir)?);
 
     watch(ctx, &mut procs, &["sim"], deadline, &mut || {
         // A late subscriber gets the policy's history only when its publisher acts.
@@ -451,7 +395,16 @@ fn in_run(
     // The learner stops by itself once it has learned from the last chunk.
     watch(ctx, &mut procs, &["learner"], deadline, &mut || Ok(()))?;
     let grace = Duration::from_millis(ctx.plan.runtime.supervise.grace_ms);
-    stop(&mut procs, &control, grace)?;
+    let mut children: Vec<&mut Child> = procs.iter_mut().collect();
+    ladder::stop(
+        &mut children,
+        &|| {
+            if let Err(e) = ipc::request_shutdown(&control) {
+                eprintln!("lavatube: {e}");
+            }
+        },
+        grace,
+    );
     if let Some(f) = procs.iter().find_map(Child::failure) {
         bail!("{f}");
     }
@@ -461,7 +414,7 @@ fn in_run(
     row.decision_steps_per_s = r.decision_steps_per_s.with_context(|| {
         format!(
             "the reader saw too few ticks; log: {}",
-            procs[0].log.display()
+            procs[0].log().display()
         )
     })?;
     row.episodes = r.episode_ends;

@@ -1,4 +1,4 @@
-//! Issue 8, item 2: the same bytes between the same two processes over iceoryx2 (the
+//! The same bytes between the same two processes over iceoryx2 (the
 //! runtime's own `common::ipc` channels: copy into a loaned sample, send, notify; the reader
 //! sleeps until notified) and over a Unix domain stream socket, for a telemetry tick, a
 //! rollout chunk and a weight vector, so the shared-memory advantage is a measured ratio.
@@ -12,19 +12,22 @@
 //! What "received" means differs exactly as the transports do: an iceoryx2 reader has the
 //! payload in place in shared memory; a socket reader has copied it out of the kernel.
 
-use super::child::Child;
-use super::reader::percentile_us;
-use anyhow::{Context, bail, ensure};
+use crate::runtime::{Child, Output, Role};
+mod echo;
+mod link;
+
+use anyhow::{Context, bail};
 use common::Transition;
-use common::ipc::{Bus, ChannelSpec, Receiver, Sender};
+use common::ipc::{Bus, Capacity, Channel, Receiver, Sender};
 use common::wire::{self, EnvTick};
+pub use echo::{EchoArgs, echo};
 use iceoryx2::prelude::ZeroCopySend;
+use link::{FRAME_HEADER, IpcLink, Link, SocketLink, encode};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
-use std::io::{ErrorKind, Read, Write};
+use std::io::{ErrorKind, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
-use std::path::{Path, PathBuf};
-use std::process::ExitCode;
+use std::path::Path;
 use std::time::{Duration, Instant};
 
 /// The header of every bench message on both transports. Local to the launcher (it is both
@@ -57,22 +60,21 @@ const ACK_EVERY: u64 = 4;
 const TIMEOUT: Duration = Duration::from_secs(60);
 
 /// The bench channels: room for a whole window, one writer, one reader.
-const fn channel(service: &'static str) -> ChannelSpec {
-    ChannelSpec {
+const fn channel<T>(service: &'static str) -> Channel<T, Stamp> {
+    Channel::new(
         service,
-        buffer: 2 * WINDOW as usize,
-        history: 0,
-        publishers: 1,
-        subscribers: 1,
-    }
+        Capacity {
+            buffer: 2 * WINDOW as usize,
+            history: 0,
+            publishers: 1,
+            subscribers: 1,
+        },
+    )
 }
-const TELEMETRY: ChannelSpec = channel("bench/telemetry");
-const ROLLOUT: ChannelSpec = channel("bench/rollout");
-const WEIGHTS: ChannelSpec = channel("bench/weights");
-const ACKS: ChannelSpec = channel("bench/acks");
-
-/// Socket frame: the stamp, the payload length, the payload.
-const FRAME_HEADER: usize = 32;
+const TELEMETRY: Channel<EnvTick, Stamp> = channel("bench/telemetry");
+const ROLLOUT: Channel<Transition, Stamp> = channel("bench/rollout");
+const WEIGHTS: Channel<f32, Stamp> = channel("bench/weights");
+const ACKS: Channel<u64, Stamp> = channel("bench/acks");
 
 /// Which message of the runtime a payload copies.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -182,100 +184,6 @@ pub struct Latency {
     pub p99_us: f64,
 }
 
-fn encode(stamp: &Stamp, len: u64, out: &mut [u8]) {
-    out[0..8].copy_from_slice(&stamp.seq.to_le_bytes());
-    out[8..16].copy_from_slice(&stamp.sent_ns.to_le_bytes());
-    out[16..20].copy_from_slice(&stamp.test.to_le_bytes());
-    out[20..24].copy_from_slice(&stamp.flags.to_le_bytes());
-    out[24..32].copy_from_slice(&len.to_le_bytes());
-}
-
-/// Reads a frame header; `None` when the socket closed before one began.
-fn read_header(stream: &mut UnixStream) -> anyhow::Result<Option<(Stamp, usize)>> {
-    let mut b = [0u8; FRAME_HEADER];
-    match stream.read_exact(&mut b) {
-        Ok(()) => {}
-        Err(e) if e.kind() == ErrorKind::UnexpectedEof => return Ok(None),
-        Err(e) => return Err(e).context("socket read"),
-    }
-    let u64_at = |i: usize| {
-        let mut w = [0u8; 8];
-        w.copy_from_slice(&b[i..i + 8]);
-        u64::from_le_bytes(w)
-    };
-    let u32_at = |i: usize| {
-        let mut w = [0u8; 4];
-        w.copy_from_slice(&b[i..i + 4]);
-        u32::from_le_bytes(w)
-    };
-    let stamp = Stamp {
-        seq: u64_at(0),
-        sent_ns: u64_at(8),
-        test: u32_at(16),
-        flags: u32_at(20),
-    };
-    let len = usize::try_from(u64_at(24)).context("frame length")?;
-    Ok(Some((stamp, len)))
-}
-
-/// The sending side of one transport.
-trait Link {
-    fn send(&mut self, stamp: Stamp) -> anyhow::Result<()>;
-    /// Waits for at least one acknowledgement; the highest count acknowledged.
-    fn acked(&mut self) -> anyhow::Result<u64>;
-}
-
-struct IpcLink<'a, T: std::fmt::Debug + Copy + ZeroCopySend + 'static> {
-    tx: &'a Sender<T, Stamp>,
-    data: &'a [T],
-    acks: &'a Receiver<u64, Stamp>,
-}
-
-impl<T: std::fmt::Debug + Copy + Default + ZeroCopySend + 'static> Link for IpcLink<'_, T> {
-    fn send(&mut self, stamp: Stamp) -> anyhow::Result<()> {
-        Ok(self.tx.send(stamp, self.data)?)
-    }
-
-    fn acked(&mut self) -> anyhow::Result<u64> {
-        let since = Instant::now();
-        loop {
-            let mut best = None;
-            while let Some(s) = self.acks.try_recv()? {
-                best = best.max(s.payload().first().copied());
-            }
-            if let Some(n) = best {
-                return Ok(n);
-            }
-            if since.elapsed() > TIMEOUT {
-                bail!("no acknowledgement over iceoryx2 for {TIMEOUT:?}");
-            }
-            self.acks.wait(Duration::from_millis(100))?;
-        }
-    }
-}
-
-struct SocketLink<'a> {
-    stream: &'a mut UnixStream,
-    /// Header and payload, sent with one write.
-    frame: Vec<u8>,
-}
-
-impl Link for SocketLink<'_> {
-    fn send(&mut self, stamp: Stamp) -> anyhow::Result<()> {
-        let len = (self.frame.len() - FRAME_HEADER) as u64;
-        encode(&stamp, len, &mut self.frame[..FRAME_HEADER]);
-        self.stream.write_all(&self.frame).context("socket write")
-    }
-
-    fn acked(&mut self) -> anyhow::Result<u64> {
-        let mut b = [0u8; 8];
-        self.stream
-            .read_exact(&mut b)
-            .context("no acknowledgement over the socket")?;
-        Ok(u64::from_le_bytes(b))
-    }
-}
-
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Phase {
     Latency,
@@ -328,10 +236,10 @@ fn accept(listener: &UnixListener, echo: &mut Child) -> anyhow::Result<UnixStrea
             Err(e) if e.kind() == ErrorKind::WouldBlock => {}
             Err(e) => return Err(e).context("socket accept"),
         }
-        if echo.poll()? {
+        if echo.poll()?.is_some() {
             bail!(
                 "the echo process exited before connecting; log: {}",
-                echo.log.display()
+                echo.log().display()
             );
         }
         if since.elapsed() > TIMEOUT {
@@ -496,7 +404,7 @@ pub fn compare(
         "--out".into(),
         out.display().to_string(),
     ];
-    let mut echo = Child::spawn("echo", launcher, &args, dir)?;
+    let mut echo = Child::spawn(Role::Echo.name(), launcher, &args, dir, Output::File)?;
     let accepted = accept(&listener, &mut echo);
     let _ = std::fs::remove_file(&sock);
     let mut stream = accepted?;
@@ -516,7 +424,7 @@ pub fn compare(
     if !finished {
         bail!(
             "the echo process did not finish; log: {}",
-            echo.log.display()
+            echo.log().display()
         );
     }
     let latencies: BTreeMap<u32, Latency> = {
@@ -564,131 +472,10 @@ pub fn compare(
     Ok(rows)
 }
 
-#[derive(Debug, clap::Args)]
-pub struct EchoArgs {
-    /// The bench run whose `bench/*` services to read.
-    #[arg(long, value_parser = common::cli::parse_run_id)]
-    pub run_id: String,
-    /// The launcher's socket.
-    #[arg(long)]
-    pub socket: PathBuf,
-    /// Where to write the recorded latencies (JSON) when the launcher closes the socket.
-    #[arg(long)]
-    pub out: PathBuf,
-}
-
-/// Receives the `count` messages of iceoryx2 test `test`; the recorded latencies,
-/// nanoseconds. Takes no more: the launcher starts the next test on the same service as soon
-/// as it has the last acknowledgement, so its first messages may already be waiting.
-fn serve_ipc<T: std::fmt::Debug + Copy + ZeroCopySend + 'static>(
-    rx: &Receiver<T, Stamp>,
-    acks: &Sender<u64, Stamp>,
-    test: u32,
-    count: u64,
-) -> anyhow::Result<Vec<u64>> {
-    let mut latencies = Vec::new();
-    let (mut got, mut progress) = (0u64, Instant::now());
-    while got < count {
-        while got < count
-            && let Some(s) = rx.try_recv()?
-        {
-            let now = wire::monotonic_ns();
-            let st = *s.user_header();
-            drop(s);
-            ensure!(
-                st.test == test,
-                "test {test}: got a message of test {}",
-                st.test
-            );
-            got += 1;
-            progress = Instant::now();
-            if st.flags & RECORD != 0 {
-                latencies.push(now.saturating_sub(st.sent_ns));
-            }
-            if st.flags & ACK != 0 {
-                acks.send(st, &[got])?;
-            }
-        }
-        if got < count {
-            if progress.elapsed() > TIMEOUT {
-                bail!("test {got}/{count}: nothing arrived over iceoryx2 for {TIMEOUT:?}");
-            }
-            rx.wait(Duration::from_millis(100))?;
-        }
-    }
-    Ok(latencies)
-}
-
-/// Receives `count` frames of one socket test; the recorded latencies, nanoseconds.
-fn serve_socket(
-    stream: &mut UnixStream,
-    buf: &mut Vec<u8>,
-    count: u64,
-) -> anyhow::Result<Vec<u64>> {
-    let mut latencies = Vec::new();
-    for got in 1..=count {
-        let (st, len) = read_header(stream)?.context("the socket closed mid-test")?;
-        buf.resize(len, 0);
-        stream.read_exact(buf).context("socket read")?;
-        let now = wire::monotonic_ns();
-        if st.flags & RECORD != 0 {
-            latencies.push(now.saturating_sub(st.sent_ns));
-        }
-        if st.flags & ACK != 0 {
-            stream
-                .write_all(&got.to_le_bytes())
-                .context("socket write")?;
-        }
-    }
-    Ok(latencies)
-}
-
-/// `lavatube bench-echo`: the receiving process of the comparison.
-pub fn echo(args: EchoArgs) -> anyhow::Result<ExitCode> {
-    let bus = Bus::connect(&args.run_id, "bench-echo")?;
-    let tele = bus.receiver::<EnvTick, Stamp>(&TELEMETRY, None)?;
-    let rollout = bus.receiver::<Transition, Stamp>(&ROLLOUT, None)?;
-    let weights = bus.receiver::<f32, Stamp>(&WEIGHTS, None)?;
-    let acks = bus.sender::<u64, Stamp>(&ACKS, None, 1)?;
-    // Connecting tells the launcher every subscriber above exists.
-    let mut stream = UnixStream::connect(&args.socket)
-        .with_context(|| format!("cannot connect to {}", args.socket.display()))?;
-    stream
-        .set_read_timeout(Some(TIMEOUT))
-        .context("socket timeout")?;
-    let mut buf = Vec::new();
-    let mut results: BTreeMap<u32, Latency> = BTreeMap::new();
-    while let Some((control, _)) = read_header(&mut stream)? {
-        ensure!(control.flags & CONTROL != 0, "expected a control frame");
-        let count = control.seq;
-        let mut ns = if control.flags & OVER_SOCKET != 0 {
-            serve_socket(&mut stream, &mut buf, count)?
-        } else {
-            match Kind::from_code((control.flags >> 8) & 0xff)? {
-                Kind::Telemetry => serve_ipc(&tele, &acks, control.test, count)?,
-                Kind::Rollout => serve_ipc(&rollout, &acks, control.test, count)?,
-                Kind::Weights => serve_ipc(&weights, &acks, control.test, count)?,
-            }
-        };
-        ns.sort_unstable();
-        if let (Some(p50_us), Some(p99_us)) = (percentile_us(&ns, 0.5), percentile_us(&ns, 0.99)) {
-            results.insert(
-                control.test,
-                Latency {
-                    count: ns.len(),
-                    p50_us,
-                    p99_us,
-                },
-            );
-        }
-    }
-    std::fs::write(&args.out, serde_json::to_string_pretty(&results)?)
-        .with_context(|| format!("cannot write {}", args.out.display()))?;
-    Ok(ExitCode::SUCCESS)
-}
-
 #[cfg(test)]
 mod tests {
+    use super::echo::{serve_ipc, serve_socket};
+    use super::link::read_header;
     use super::*;
     use std::mem::{align_of, offset_of};
 

@@ -1,0 +1,34 @@
+//! The runtime engine under every launcher command: a [`Run`] resolves its config, spawns its
+//! processes as [`Child`]ren under their restart policies ([`Supervised`]), swaps learners,
+//! and stops them all by one [`ladder`]. `run`, `reproduce`, `bench` and `swap-learner` are
+//! thin commands over it.
+
+mod bins;
+mod child;
+pub mod ladder;
+mod role;
+mod run;
+mod summary;
+mod supervisor;
+mod swap;
+mod sweep;
+
+pub use bins::{Binaries, locate};
+pub use child::{Child, Output, Usage};
+pub use role::Role;
+pub use run::{Finished, LAUNCHER_NODE, Run, TELEMETRY_CSV, learner_dir};
+pub use summary::{MeanStd, Progress, Summary};
+pub use supervisor::{Event, Spec, Supervised};
+pub use sweep::sweep_dead_runs;
+
+use indicatif::ProgressBar;
+
+/// Prints a line above the progress bar, or to stderr when the bar is hidden (not a terminal,
+/// `--quiet`), where indicatif would drop it.
+pub fn say(bar: &ProgressBar, line: String) {
+    if bar.is_hidden() {
+        eprintln!("{line}");
+    } else {
+        bar.println(line);
+    }
+}

@@ -1,0 +1,419 @@
+//! [`Run`]: one run of the system, from a resolved config to its summary. It creates the run
+//! directory, starts every process of the run under its restart policy, shows progress from
+//! the run's own telemetry, answers learner swaps, and ends with the stop ladder, the run's
+//! shared memory removed and `summary.json` written.
+
+use super::swap::{SwapContext, learner_args, swap_learner};
+use super::{Binaries, Event, Progress, Role, Spec, Summary, Supervised, ladder, say};
+use crate::error::UserError;
+use anyhow::Context;
+use common::Config;
+use common::config::PolicySlot;
+use common::ipc::{self, Bus, Receiver, SwapServer};
+use common::wire::{EnvTick, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+/// Where a run with `run.telemetry-csv` keeps the sim's telemetry, in its run directory.
+pub const TELEMETRY_CSV: &str = "telemetry.csv";
+
+/// The launcher's node name on a run's bus: a live one means the run id is taken.
+pub const LAUNCHER_NODE: &str = "launcher";
+
+/// Where a slot's learner writes metrics and checkpoints: the run directory for `general`,
+/// a subdirectory per specialist.
+pub fn learner_dir(run_dir: &Path, slot: PolicySlot) -> PathBuf {
+    match slot {
+        PolicySlot::General => run_dir.to_path_buf(),
+        s => run_dir.join(s.learner_name()),
+    }
+}
+
+/// A run, prepared: its id checked, its directory made, its resolved config written.
+pub struct Run<'a> {
+    cfg: &'a Config,
+    id: String,
+    dir: PathBuf,
+    logs: PathBuf,
+    cfg_path: PathBuf,
+    bins: Binaries,
+    bar: ProgressBar,
+}
+
+/// How a run ended.
+#[derive(Debug)]
+pub struct Finished {
+    pub summary: Summary,
+    /// Stopped by Ctrl-C (or SIGTERM) before it finished.
+    pub interrupted: bool,
+}
+
+impl<'a> Run<'a> {
+    /// Prepares `cfg` in `<run.out-dir>/<dir_name>/`, its processes to meet in the shared
+    /// memory of run `run_id`. Fails before anything starts when a live run already uses
+    /// `run_id`, the directory exists, or a binary is missing.
+    pub fn prepare(
+        cfg: &'a Config,
+        dir_name: &str,
+        run_id: &str,
+        quiet: bool,
+    ) -> anyhow::Result<Self> {
+        let bins = Binaries::locate()?;
+        // Two runs on one id would read each other's messages and remove each other's shared
+        // memory at the end. Other nodes (monitors, tests watching the run) may come first.
+        let live: Vec<String> = ipc::list_nodes(run_id)
+            .unwrap_or_default()
+            .into_iter()
+            .filter(|n| n.alive && n.name == LAUNCHER_NODE)
+            .map(|n| format!("{} (pid {})", n.name, n.pid))
+            .collect();
+        if !live.is_empty() {
+            return Err(UserError(format!(
+                "run id `{run_id}` is in use by a live run ({}): pick another --run-id",
+                live.join(", ")
+            ))
+            .into());
+        }
+        // Absolute, so logs and the children's arguments name it unambiguously.
+        let dir = std::path::absolute(cfg.run.out_dir.join(dir_name))
+            .with_context(|| format!("cannot resolve {}", cfg.run.out_dir.display()))?;
+        if dir.exists() {
+            return Err(UserError(format!(
+                "run directory {} already exists: pick another --run-id",
+                dir.display()
+            ))
+            .into());
+        }
+        let logs = dir.join("logs");
+        std::fs::create_dir_all(&logs)
+            .with_context(|| format!("cannot create {}", logs.display()))?;
+        let cfg_path = dir.join("config.toml");
+        std::fs::write(&cfg_path, cfg.to_toml())
+            .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+        let bar = if quiet {
+            ProgressBar::hidden()
+        } else {
+            ProgressBar::new(cfg.run.total_steps)
+        };
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} steps {per_sec} {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar()),
+        );
+        Ok(Self {
+            cfg,
+            id: run_id.to_string(),
+            dir,
+            logs,
+            cfg_path,
+            bins,
+            bar,
+        })
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Every process of the run: learners (then frozen ones), estimator, sim last, so the
+    /// sim's first chunk finds its readers.
+    fn specs(&self) -> Vec<Spec> {
+        let (cfg, sup) = (self.cfg, &self.cfg.supervise);
+        let join = |extra: &[&str]| -> Vec<String> {
+            let mut v: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
+            v.extend([
+                "--config".into(),
+                self.cfg_path.display().to_string(),
+                "--run-id".into(),
+                self.id.clone(),
+            ]);
+            v
+        };
+        let spec = |role: Role, args: Vec<String>, policy| Spec {
+            role,
+            bin: self.bins.of(role).clone(),
+            args,
+            policy,
+        };
+        let mut specs: Vec<Spec> = cfg
+            .run
+            .learners
+            .iter()
+            .map(|&slot| {
+                let mut join = join(&["serve", "--slot", slot.name()]);
+                if let Some(init) = &cfg.run.init_from {
+                    join.extend(["--init-from".into(), init.display().to_string()]);
+                }
+                let args = learner_args(&join, &learner_dir(&self.dir, slot), None);
+                spec(Role::Learner(slot), args, sup.learner)
+            })
+            .collect();
+        specs.extend(cfg.run.frozen.iter().map(|(&slot, ckpt)| {
+            let join = join(&["serve", "--slot", slot.name(), "--frozen"]);
+            let args = learner_args(&join, &learner_dir(&self.dir, slot), Some(ckpt));
+            spec(Role::Learner(slot), args, sup.learner)
+        }));
+        specs.push(spec(Role::Estimator, join(&["serve"]), sup.estimator));
+        let mut sim_args = join(&[]);
+        if cfg.run.telemetry_csv {
+            sim_args.extend([
+                "--telemetry".into(),
+                self.dir.join(TELEMETRY_CSV).display().to_string(),
+            ]);
+        }
+        specs.push(spec(Role::Sim, sim_args, sup.sim));
+        specs
+    }
+
+    /// Runs to the end: until the sim has finished and the learners have learned from its
+    /// last chunk, a process fails for good, or Ctrl-C. Fails when a process failed for good.
+    pub fn execute(self) -> anyhow::Result<Finished> {
+        say(
+            &self.bar,
+            format!(
+                "run {}: {}, {:?} mode → {}",
+                self.id,
+                self.cfg.sim.describe_envs(),
+                self.cfg.run.mode,
+                self.dir.display()
+            ),
+        );
+        let bus = Bus::connect(&self.id, LAUNCHER_NODE)?;
+        let control = bus.control_notifier()?;
+        let ports = Ports {
+            telemetry: bus.receiver(&ipc::TELEMETRY, None)?,
+            terrain: bus.receiver(&ipc::TERRAIN, None)?,
+            swap: bus.swap_server()?,
+        };
+        let grace = Duration::from_millis(self.cfg.supervise.grace_ms);
+        let mut members: Vec<Supervised> = Vec::new();
+        for spec in self.specs() {
+            match Supervised::start(spec, &self.logs, &self.bar) {
+                Ok(s) => members.push(s),
+                Err(e) => {
+                    stop_all(&mut members, &|| {}, grace);
+                    return Err(e);
+                }
+            }
+        }
+        let pids: Vec<String> = members
+            .iter()
+            .map(|s| format!("{} {}", s.role().name(), s.child.pid()))
+            .collect();
+        say(&self.bar, format!("pids: {}", pids.join(", ")));
+
+        let started = Instant::now();
+        let mut loop_ = Supervision {
+            run: &self,
+            bus: &bus,
+            members,
+            progress: Progress {
+                both_areas: (self.cfg.sim.flat_envs > 0 && self.cfg.sim.rough_envs > 0)
+                    || self.cfg.sim.mixed_envs > 0,
+                ..Progress::default()
+            },
+            failed: None,
+            swaps: 0,
+            sim_finished: None,
+            grace,
+        };
+        let interrupted = loop_.until_done(&ports)?;
+        let Supervision {
+            mut members,
+            progress,
+            failed,
+            swaps,
+            ..
+        } = loop_;
+        stop_all(
+            &mut members,
+            &|| {
+                if let Err(e) = ipc::request_shutdown(&control) {
+                    eprintln!("lavatube: {e}");
+                }
+            },
+            grace,
+        );
+        self.bar.finish_and_clear();
+        drop((ports, control, bus));
+        if let Err(e) = ipc::remove_run(&self.id) {
+            eprintln!("lavatube: {e}");
+        }
+
+        let mut summary = Summary::of(
+            &self.id,
+            &progress,
+            self.cfg.sim.decision_dt(),
+            started.elapsed().as_secs_f64(),
+            swaps,
+        );
+        for m in &members {
+            let name = m.role().name().to_string();
+            summary.pids.insert(name.clone(), m.child.pid());
+            summary
+                .exit
+                .insert(name.clone(), m.child.status().map(|s| s.to_string()));
+            summary.restarts.insert(name, m.restarts);
+        }
+        let path = self.dir.join("summary.json");
+        std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("{}", summary.line(&self.dir));
+        if let Some(f) = failed {
+            anyhow::bail!("{f}; logs in {}", self.logs.display());
+        }
+        Ok(Finished {
+            summary,
+            interrupted,
+        })
+    }
+}
+
+/// The launcher's ports on the run's bus.
+struct Ports {
+    telemetry: Receiver<EnvTick, TickHeader>,
+    terrain: Receiver<TerrainEstimate, TerrainHeader>,
+    swap: SwapServer,
+}
+
+/// The run while it runs: its processes and what they have said.
+struct Supervision<'r, 'a> {
+    run: &'r Run<'a>,
+    bus: &'r Bus,
+    members: Vec<Supervised>,
+    progress: Progress,
+    /// Why the run failed, once a process failed for good.
+    failed: Option<String>,
+    swaps: u32,
+    sim_finished: Option<Instant>,
+    grace: Duration,
+}
+
+impl Supervision<'_, '_> {
+    /// Loops until the run is done; whether it was interrupted.
+    fn until_done(&mut self, ports: &Ports) -> anyhow::Result<bool> {
+        loop {
+            self.show_progress(ports)?;
+            self.watch_members()?;
+            if let Some(request) = ports.swap.receive()? {
+                let req = *request.payload();
+                let (ok, message) = self.swap(&req);
+                say(&self.run.bar, format!("swap-learner: {message}"));
+                if let Err(e) = request.send_copy(SwapReply::new(ok, &message)) {
+                    say(&self.run.bar, format!("swap-learner: cannot reply: {e:?}"));
+                }
+            }
+            let learner_alive = self
+                .members
+                .iter()
+                .any(|s| s.role().is_learner() && s.alive());
+            // Once the sim is done the learner gets one grace period to learn from the last chunk.
+            let learner_late = self.sim_finished.is_some_and(|t| t.elapsed() > self.grace);
+            if self.failed.is_some()
+                || (self.sim_finished.is_some() && (!learner_alive || learner_late))
+            {
+                return Ok(false);
+            }
+            if self.bus.node().wait(Duration::from_millis(100)).is_err() {
+                say(&self.run.bar, "interrupted: stopping the run".into());
+                return Ok(true);
+            }
+        }
+    }
+
+    fn show_progress(&mut self, ports: &Ports) -> anyhow::Result<()> {
+        if let Some(s) = ports.telemetry.latest()? {
+            self.progress.tick = *s.user_header();
+        }
+        if let Some(s) = ports.terrain.latest()? {
+            self.progress.terrain = *s.user_header();
+        }
+        let p = &self.progress;
+        let bar = &self.run.bar;
+        bar.set_position(p.tick.env_steps.min(self.run.cfg.run.total_steps));
+        bar.set_message(format!(
+            "v{} success {:.0}% terrain {}",
+            p.tick.policy_version,
+            100.0 * p.success_rate(),
+            p.terrain_accuracy()
+                .map_or("-".into(), |a| format!("{:.0}%", 100.0 * a))
+        ));
+        Ok(())
+    }
+
+    fn watch_members(&mut self) -> anyhow::Result<()> {
+        let may_restart = self.sim_finished.is_none();
+        let (logs, bar) = (&self.run.logs, &self.run.bar);
+        for m in &mut self.members {
+            let (role, name) = (m.role(), m.role().name());
+            match m.watch(logs, bar, may_restart)? {
+                Some(Event::Restarting { status, after }) => {
+                    let cleaned = self.bus.cleanup_dead_nodes();
+                    say(
+                        bar,
+                        format!(
+                            "{name} exited with {status}; restart {} of {} in {:.1} s ({cleaned} dead node(s) cleaned up)",
+                            m.restarts + 1,
+                            m.spec.policy.max_restarts,
+                            after.as_secs_f64()
+                        ),
+                    );
+                }
+                Some(Event::Restarted { pid }) => {
+                    say(bar, format!("{name} restarted: pid {pid}"));
+                }
+                Some(Event::Exited(status)) if role == Role::Sim && status.success() => {
+                    self.sim_finished = Some(Instant::now());
+                }
+                Some(Event::Exited(status)) if role == Role::Estimator && may_restart => {
+                    // DESIGN §5: without estimates the sim keeps acting on its last ones.
+                    self.bus.cleanup_dead_nodes();
+                    say(
+                        bar,
+                        format!(
+                            "estimator exited with {status} for good; the sim keeps its last terrain estimates"
+                        ),
+                    );
+                }
+                Some(Event::Exited(status)) if !status.success() && self.failed.is_none() => {
+                    self.failed = Some(format!("{name} exited with {status}"));
+                }
+                _ => {}
+            }
+        }
+        Ok(())
+    }
+
+    /// Answers one swap request: whether it happened, and what to tell the requester.
+    fn swap(&mut self, req: &common::wire::SwapRequest) -> (bool, String) {
+        let slot = PolicySlot::ALL[(req.slot as usize).min(2)];
+        let Some(learner) = self
+            .members
+            .iter_mut()
+            .find(|m| m.role() == Role::Learner(slot))
+        else {
+            return (false, format!("this run has no {}", slot.learner_name()));
+        };
+        let ctx = SwapContext {
+            running: self.run.cfg,
+            run_dir: &self.run.dir,
+            logs: &self.run.logs,
+            bar: &self.run.bar,
+            grace: self.grace,
+        };
+        match swap_learner(learner, req, self.swaps + 1, &ctx) {
+            Ok(m) => {
+                self.swaps += 1;
+                self.bus.cleanup_dead_nodes();
+                (true, m)
+            }
+            Err(m) => (false, m),
+        }
+    }
+}
+
+/// Stops every member's process (see [`ladder::stop`]).
+fn stop_all(members: &mut [Supervised], request: &dyn Fn(), grace: Duration) {
+    let mut children: Vec<_> = members.iter_mut().map(|m| &mut m.child).collect();
+    ladder::stop(&mut children, request, grace);
+}

@@ -1,0 +1,149 @@
+//! What a run reports: the progress it shows while it runs, read from its own telemetry and
+//! terrain services, and the typed [`Summary`] behind `summary.json` when it ends.
+
+use common::wire::{TerrainHeader, TickHeader};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// What the run's telemetry and terrain services said last.
+#[derive(Debug, Default, Clone, Copy)]
+pub struct Progress {
+    pub tick: TickHeader,
+    pub terrain: TerrainHeader,
+    /// Envs see flat and rough ground (both areas, or the mixed course): only then does
+    /// scoring a two-class terrain estimate mean anything.
+    pub both_areas: bool,
+}
+
+impl Progress {
+    pub fn success_rate(&self) -> f64 {
+        self.tick.successes as f64 / self.tick.episodes.max(1) as f64
+    }
+
+    /// Mean and std of the reach time of successful episodes, seconds (SPEC S8, Table 1).
+    pub fn reach_seconds(&self, decision_dt: f64) -> Option<(f64, f64)> {
+        let n = self.tick.successes as f64;
+        (n > 0.0).then(|| {
+            let mean = self.tick.reach_ticks as f64 / n;
+            let var = (self.tick.reach_ticks_sq as f64 / n - mean * mean).max(0.0);
+            (mean * decision_dt, var.sqrt() * decision_dt)
+        })
+    }
+
+    pub fn terrain_accuracy(&self) -> Option<f64> {
+        (self.both_areas && self.terrain.scored > 0)
+            .then(|| self.terrain.correct as f64 / self.terrain.scored as f64)
+    }
+}
+
+/// Mean and standard deviation, seconds.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct MeanStd {
+    pub mean: f64,
+    pub std: f64,
+}
+
+/// `summary.json`: one run's totals, and what became of each of its processes (keyed by
+/// [`Role::name`](super::Role::name)).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Summary {
+    pub run_id: String,
+    pub env_steps: u64,
+    pub wall_seconds: f64,
+    pub env_steps_per_second: f64,
+    pub episodes: u64,
+    pub successes: u64,
+    pub success_rate: f64,
+    /// Over successful episodes; `null` without one.
+    pub reach_seconds: Option<MeanStd>,
+    pub policy_version: u32,
+    /// `null` unless envs see flat and rough ground.
+    pub terrain_accuracy: Option<f64>,
+    pub pids: BTreeMap<String, u32>,
+    /// Each process's last exit status as the OS words it, `null` if it never exited.
+    pub exit: BTreeMap<String, Option<String>>,
+    pub restarts: BTreeMap<String, u32>,
+    pub learner_swaps: u32,
+}
+
+impl Summary {
+    /// The run's totals from its last progress, after `wall_seconds`.
+    pub fn of(
+        run_id: &str,
+        progress: &Progress,
+        decision_dt: f64,
+        wall_seconds: f64,
+        learner_swaps: u32,
+    ) -> Self {
+        let env_steps = progress.tick.env_steps;
+        Self {
+            run_id: run_id.to_string(),
+            env_steps,
+            wall_seconds,
+            env_steps_per_second: env_steps as f64 / wall_seconds.max(1e-9),
+            episodes: progress.tick.episodes,
+            successes: progress.tick.successes,
+            success_rate: progress.success_rate(),
+            reach_seconds: progress
+                .reach_seconds(decision_dt)
+                .map(|(mean, std)| MeanStd { mean, std }),
+            policy_version: progress.tick.policy_version,
+            terrain_accuracy: progress.terrain_accuracy(),
+            pids: BTreeMap::new(),
+            exit: BTreeMap::new(),
+            restarts: BTreeMap::new(),
+            learner_swaps,
+        }
+    }
+
+    /// The one line the launcher prints at the end of a run.
+    pub fn line(&self, dir: &std::path::Path) -> String {
+        format!(
+            "run {}: {} env steps in {:.1} s ({:.0} steps/s), {} episodes, success {:.1}%, policy v{}, terrain accuracy {} → {}",
+            self.run_id,
+            self.env_steps,
+            self.wall_seconds,
+            self.env_steps_per_second,
+            self.episodes,
+            100.0 * self.success_rate,
+            self.policy_version,
+            self.terrain_accuracy
+                .map_or("-".into(), |a| format!("{:.1}%", 100.0 * a)),
+            dir.display()
+        )
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reach_time_comes_from_the_tick_sums() {
+        // Two successes of 10 and 20 ticks at 0.1 s per tick: 1.5 s ± 0.5 s.
+        let p = Progress {
+            tick: TickHeader {
+                successes: 2,
+                reach_ticks: 30,
+                reach_ticks_sq: 500,
+                ..TickHeader::default()
+            },
+            ..Progress::default()
+        };
+        let (mean, std) = p.reach_seconds(0.1).expect("successes");
+        assert!((mean - 1.5).abs() < 1e-12 && (std - 0.5).abs() < 1e-12);
+        assert_eq!(Progress::default().reach_seconds(0.1), None);
+    }
+
+    #[test]
+    fn the_summary_round_trips_through_json_with_nulls_where_nothing_was_measured() {
+        let mut s = Summary::of("r1", &Progress::default(), 0.1, 2.0, 1);
+        s.pids.insert("sim".into(), 42);
+        s.exit.insert("sim".into(), None);
+        let text = serde_json::to_string(&s).expect("json");
+        assert!(
+            text.contains("\"reach_seconds\":null") && text.contains("\"terrain_accuracy\":null")
+        );
+        assert_eq!(serde_json::from_str::<Summary>(&text).expect("parse"), s);
+    }
+}
