@@ -7,6 +7,7 @@ use crate::env::StepInfo;
 use crate::switching::PolicyPool;
 use crate::task::Ending;
 use common::config::PolicySlot;
+use common::episode::EpisodeStats;
 use common::wire::{self, EnvTick};
 use common::{ACT_DIM, OBS_DIM, Transition};
 
@@ -21,11 +22,8 @@ pub struct Actor {
     acted: Vec<(PolicySlot, u32)>,
     /// What the last step produced, per env.
     pub infos: Vec<StepInfo>,
-    pub episodes: u64,
-    pub successes: u64,
-    /// Sums of successful episodes' lengths (ticks) and their squares (reach-time stats).
-    pub reach_ticks: u64,
-    pub reach_ticks_sq: u64,
+    /// Every episode ended so far, counted here where it ends.
+    pub episodes: EpisodeStats,
 }
 
 impl Actor {
@@ -40,10 +38,7 @@ impl Actor {
             logprobs: vec![0.0; n],
             acted: vec![(PolicySlot::General, 0); n],
             infos: vec![StepInfo::default(); n],
-            episodes: 0,
-            successes: 0,
-            reach_ticks: 0,
-            reach_ticks_sq: 0,
+            episodes: EpisodeStats::default(),
         }
     }
 
@@ -67,14 +62,9 @@ impl Actor {
         for (i, env) in batch.envs.iter().enumerate() {
             let info = &self.infos[i];
             let end = info.ending;
-            self.episodes += u64::from(end.is_some());
-            if end == Some(Ending::Success) {
-                let t = u64::from(info.episode_steps);
-                (self.successes, self.reach_ticks, self.reach_ticks_sq) = (
-                    self.successes + 1,
-                    self.reach_ticks + t,
-                    self.reach_ticks_sq + t * t,
-                );
+            if let Some(e) = end {
+                self.episodes
+                    .record(e == Ending::Success, u64::from(info.episode_steps));
             }
             chunk.push(Transition {
                 obs: self.obs[i],

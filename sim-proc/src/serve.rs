@@ -226,11 +226,11 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
                 env_steps,
                 policy_version: inbox.version(),
                 envs: n as u32,
-                episodes: actor.episodes,
-                successes: actor.successes,
+                episodes: actor.episodes.episodes,
+                successes: actor.episodes.successes,
                 sent_ns: wire::monotonic_ns(),
-                reach_ticks: actor.reach_ticks,
-                reach_ticks_sq: actor.reach_ticks_sq,
+                reach_ticks: actor.episodes.reach_ticks,
+                reach_ticks_sq: actor.episodes.reach_ticks_sq,
             };
             tele_tx.send(header, &ticks)?;
             tick += 1;
@@ -294,8 +294,8 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(
         env_steps,
-        episodes = actor.episodes,
-        successes = actor.successes,
+        episodes = actor.episodes.episodes,
+        successes = actor.episodes.successes,
         policy_version = inbox.version(),
         env_steps_per_s = env_steps as f64 / secs,
         "sim done"

@@ -3,9 +3,11 @@
 
 use crate::controllers::{Controller, GoToController, PolicyController, RandomController};
 use crate::env::{Env, SharedTerrain, StepInfo};
+use crate::task::Ending;
 use crate::terrain::Terrain;
 use crate::{Batch, SimError};
 use anyhow::Context;
+use common::episode::EpisodeStats;
 use common::{Config, OBS_DIM, Policy, TelemetryRow};
 use std::path::{Path, PathBuf};
 
@@ -67,25 +69,27 @@ pub struct Args {
 /// What `--json` writes. The time covers stepping only (not building the terrain), so it
 /// compares with the stepping rate a run's telemetry shows.
 #[derive(Debug, serde::Serialize)]
-struct JsonResult<'a> {
+struct JsonResult {
     envs: usize,
-    #[serde(flatten)]
-    summary: &'a Summary,
+    ticks: u64,
+    episodes: u64,
+    successes: u64,
+    stalls: u64,
+    faults: u64,
+    /// Mean decision steps of successful episodes; 0 without any.
+    mean_reach_steps: f64,
     stepping_seconds: f64,
     decision_steps_per_s: f64,
 }
 
 /// Episode outcomes over a run.
-#[derive(Debug, Default, Clone, Copy, PartialEq, serde::Serialize)]
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
 pub struct Summary {
     pub ticks: u64,
-    pub episodes: u64,
-    pub successes: u64,
+    pub episodes: EpisodeStats,
     /// Episodes ended by the stall rule (`sim.task.stall-steps`).
     pub stalls: u64,
     pub faults: u64,
-    /// Mean decision steps of successful episodes.
-    pub mean_reach_steps: f64,
 }
 
 /// One telemetry row for an env after a step.
@@ -109,7 +113,7 @@ pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
         reward: info.reward,
         terminated: info.ending.is_some_and(|e| e.terminated()),
         truncated: info.ending.is_some_and(|e| e.truncated()),
-        success: info.ending == Some(crate::task::Ending::Success),
+        success: info.ending == Some(Ending::Success),
         target_x: info.target[0],
         target_z: info.target[1],
     }
@@ -186,7 +190,6 @@ pub fn drive(
     let mut infos = vec![StepInfo::default(); n];
     batch.observe(&mut obs);
     let mut s = Summary::default();
-    let mut reach_steps = 0u64;
     for _ in 0..steps {
         for (i, a) in actions.iter_mut().enumerate() {
             *a = controller.act(i, &obs[i]);
@@ -196,25 +199,14 @@ pub fn drive(
             let info = &infos[i];
             sink(&telemetry_row(env, info))?;
             if let Some(end) = info.ending {
-                s.episodes += 1;
-                match end {
-                    crate::task::Ending::Success => {
-                        s.successes += 1;
-                        reach_steps += u64::from(info.episode_steps);
-                    }
-                    crate::task::Ending::Stalled => s.stalls += 1,
-                    _ => {}
-                }
+                s.episodes
+                    .record(end == Ending::Success, u64::from(info.episode_steps));
+                s.stalls += u64::from(end == Ending::Stalled);
             }
         }
         s.ticks += 1;
     }
     s.faults = infos.iter().map(|i| i.faults).sum();
-    s.mean_reach_steps = if s.successes > 0 {
-        reach_steps as f64 / s.successes as f64
-    } else {
-        0.0
-    };
     Ok(s)
 }
 
@@ -278,8 +270,8 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
     let decision_steps_per_s = (summary.ticks * batch.len() as u64) as f64 / secs;
     tracing::info!(
         ticks = summary.ticks,
-        episodes = summary.episodes,
-        successes = summary.successes,
+        episodes = summary.episodes.episodes,
+        successes = summary.episodes.successes,
         stalls = summary.stalls,
         faults = summary.faults,
         decision_steps_per_s,
@@ -288,7 +280,15 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
     if let Some(path) = &args.json {
         let result = JsonResult {
             envs: batch.len(),
-            summary: &summary,
+            ticks: summary.ticks,
+            episodes: summary.episodes.episodes,
+            successes: summary.episodes.successes,
+            stalls: summary.stalls,
+            faults: summary.faults,
+            mean_reach_steps: summary
+                .episodes
+                .reach_seconds(1.0)
+                .map_or(0.0, |(mean, _)| mean),
             stepping_seconds: secs,
             decision_steps_per_s,
         };
@@ -358,6 +358,9 @@ mod tests {
         let mut batch = Batch::new(&cfg, &terrain, 2);
         let s = drive(&mut batch, &mut Idle, 35, |_| Ok(())).expect("drive");
         // Each robot stalls at steps 10, 20 and 30 and never reaches a target.
-        assert_eq!((s.episodes, s.stalls, s.successes), (6, 6, 0));
+        assert_eq!(
+            (s.episodes.episodes, s.stalls, s.episodes.successes),
+            (6, 6, 0)
+        );
     }
 }
