@@ -11,13 +11,43 @@
 //!
 //! Hidden layers use tanh; the mean head is linear. Observations are normalised as
 //! `clamp((x - mean) / sqrt(var + 1e-8), ±obs_clip)` before the first layer.
+//!
+//! Actions are drawn from the diagonal Gaussian `N(mean, exp(log_std)²)` by
+//! [`sample_gaussian`], the one sampler every process uses, so the simulator and the learner
+//! agree on the draws and their log-probabilities.
 
 use serde::{Deserialize, Serialize};
+
+use crate::Rng;
 
 /// Added to the variance before the square root when normalising observations.
 pub const OBS_NORM_EPS: f32 = 1e-8;
 /// Most hidden layers an architecture may have (the wire format reserves this many).
 pub const MAX_HIDDEN: usize = 4;
+/// `½·ln(2π)`: each dimension's constant term in a Gaussian log-density.
+pub const HALF_LN_2PI: f32 = 0.918_938_5;
+
+/// Diagonal Gaussian log-density of `action` with mean `mean` and log-std `log_std`.
+pub fn gaussian_log_prob(action: &[f32], mean: &[f32], log_std: &[f32]) -> f32 {
+    action
+        .iter()
+        .zip(mean)
+        .zip(log_std)
+        .map(|((a, m), s)| {
+            let z = (a - m) / s.exp();
+            -0.5 * z * z - s - HALF_LN_2PI
+        })
+        .sum()
+}
+
+/// Draws `action` from `N(mean, exp(log_std)²)`, one standard normal per dimension in order,
+/// and returns its log-probability. The result is unclipped: the simulator clips it.
+pub fn sample_gaussian(mean: &[f32], log_std: &[f32], rng: &mut Rng, action: &mut [f32]) -> f32 {
+    for ((a, m), s) in action.iter_mut().zip(mean).zip(log_std) {
+        *a = m + s.exp() * rng.normal() as f32;
+    }
+    gaussian_log_prob(action, mean, log_std)
+}
 
 /// The shape of an actor network: what the flat weight vector must match.
 #[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
@@ -176,9 +206,30 @@ impl Policy {
 
     /// The action mean for one observation, written to `mean` (`[act]`).
     pub fn mean_action(&mut self, obs: &[f32], mean: &mut [f32]) {
+        debug_assert_eq!(mean.len(), self.layout.act_dim);
+        self.forward(obs);
+        mean.copy_from_slice(&self.a[..self.layout.act_dim]);
+    }
+
+    /// An unclipped action for one observation, written to `action` (`[act]`), and its
+    /// log-probability: a draw from the policy's Gaussian with `rng`, its mean without.
+    pub fn sample(&mut self, obs: &[f32], rng: Option<&mut Rng>, action: &mut [f32]) -> f32 {
+        debug_assert_eq!(action.len(), self.layout.act_dim);
+        self.forward(obs);
+        let (mean, log_std) = (&self.a[..self.layout.act_dim], self.log_std());
+        match rng {
+            Some(rng) => sample_gaussian(mean, log_std, rng, action),
+            None => {
+                action.copy_from_slice(mean);
+                gaussian_log_prob(mean, mean, log_std)
+            }
+        }
+    }
+
+    /// Evaluates the network on one observation, leaving the action mean in `a[..act]`.
+    fn forward(&mut self, obs: &[f32]) {
         let l = &self.layout;
         debug_assert_eq!(obs.len(), l.obs_dim);
-        debug_assert_eq!(mean.len(), l.act_dim);
         let (mu, var) = (
             &self.weights[l.obs_mean()..l.obs_mean() + l.obs_dim],
             &self.weights[l.obs_var()..l.obs_var() + l.obs_dim],
@@ -205,7 +256,6 @@ impl Policy {
             }
             std::mem::swap(&mut self.a, &mut self.b);
         }
-        mean.copy_from_slice(&self.a[..l.act_dim]);
     }
 }
 
@@ -369,6 +419,63 @@ mod tests {
         assert!((out[0] - 2.0).abs() < 1e-6);
         let err = Policy::new(l, vec![0.0; 3], 2.0).expect_err("short");
         assert_eq!((err.want, err.got), (5, 3));
+    }
+
+    #[test]
+    fn gaussian_log_prob_matches_hand_values() {
+        // N(0, 1) at 0: −½·ln(2π) = −0.918939; two dims: −1.837877.
+        assert!(
+            (gaussian_log_prob(&[0.0, 0.0], &[0.0, 0.0], &[0.0, 0.0]) + 1.837_877).abs() < 1e-5
+        );
+        // σ = e^0.5 at z = 1: −½ − 0.5 − 0.918939.
+        let lp = gaussian_log_prob(&[1.0f32.mul_add(0.5f32.exp(), 0.0)], &[0.0], &[0.5]);
+        assert!((lp + 1.918_939).abs() < 1e-5, "{lp}");
+    }
+
+    #[test]
+    fn sampling_draws_one_normal_per_dimension_in_order() {
+        // Rng::new(3)'s first two standard normals are −0.194472 and 1.127222.
+        let mut rng = Rng::new(3);
+        let mut action = [0.0; 2];
+        // mean (1, −2), σ = (1, 2): action = (1 − 0.194472, −2 + 2·1.127222).
+        let lp = sample_gaussian(
+            &[1.0, -2.0],
+            &[0.0, std::f32::consts::LN_2],
+            &mut rng,
+            &mut action,
+        );
+        assert!((action[0] - 0.805_528).abs() < 1e-6, "{action:?}");
+        assert!((action[1] - 0.254_445).abs() < 1e-6, "{action:?}");
+        // −½·(0.194472² + 1.127222²) − ln 2 − 2·½·ln(2π) = −3.185249.
+        assert!((lp + 3.185_249).abs() < 1e-5, "{lp}");
+        let mut replay = Rng::new(3);
+        replay.normal();
+        replay.normal();
+        assert_eq!(rng, replay, "exactly two normals drawn");
+    }
+
+    #[test]
+    fn policy_sample_is_the_mean_without_rng_and_a_gaussian_draw_with_it() {
+        // obs 1 → mean (2·1.5 + 0.5, −1·1.5) = (3.5, −1.5); σ = (1, 2).
+        let l = PolicyLayout::new(1, &[], 2);
+        let w = vec![0.0, 1.0, 2.0, -1.0, 0.5, 0.0, 0.0, std::f32::consts::LN_2];
+        let mut p = Policy::new(l, w, 5.0).expect("layout");
+        let mut action = [0.0; 2];
+        let lp = p.sample(&[1.5], None, &mut action);
+        assert_eq!(action, [3.5, -1.5]);
+        // −ln 2 − 2·½·ln(2π) = −2.531024.
+        assert!((lp + 2.531_024).abs() < 1e-5, "{lp}");
+
+        let mut rng = Rng::new(1);
+        let lp = p.sample(&[1.5], Some(&mut rng), &mut action);
+        let mut want = [0.0; 2];
+        let want_lp = sample_gaussian(
+            &[3.5, -1.5],
+            &[0.0, std::f32::consts::LN_2],
+            &mut Rng::new(1),
+            &mut want,
+        );
+        assert_eq!((action, lp), (want, want_lp));
     }
 
     #[test]

@@ -3,9 +3,7 @@
 //! reshapes enter the autodiff graph.
 
 use burn::tensor::Tensor;
-
-/// ½·ln(2π), the per-dimension constant of a Gaussian log-density.
-pub const HALF_LN_2PI: f32 = 0.918_938_5;
+use common::policy::HALF_LN_2PI;
 
 /// `log N(action; mean, diag(exp(log_std)²))`, summed over action dimensions.
 /// `mean`, `action`: `[batch, act]`; `log_std`: `[1, act]`. Returns `[batch, 1]`.

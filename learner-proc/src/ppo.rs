@@ -11,14 +11,14 @@ use std::time::Instant;
 
 use burn::tensor::{Device, Tensor, TensorData};
 use common::config::{Config, PolicySlot, PpoConfig};
-use common::policy::PolicyLayout;
+use common::policy::{PolicyLayout, sample_gaussian};
 use common::{ACT_DIM, OBS_DIM, Rng, Transition};
 use serde::{Deserialize, Serialize};
 
 use crate::LearnerError;
 use crate::adam::{Adam, clip_global_norm};
 use crate::gae::{bootstrap_truncated, gae};
-use crate::loss::{HALF_LN_2PI, clipped_surrogate, gaussian_entropy, gaussian_logprob, value_loss};
+use crate::loss::{clipped_surrogate, gaussian_entropy, gaussian_logprob, value_loss};
 use crate::metrics::{EpisodeOutcome, EpisodeSummary, UpdateMetrics};
 use crate::net::{NetShape, read};
 use crate::obs_norm::{RunningMeanStd, normalise};
@@ -270,8 +270,9 @@ impl Learner {
     }
 
     /// Samples unclipped actions for raw observations and returns them with their
-    /// log-probabilities under the current policy. `rng` is the caller's (per env or runtime),
-    /// so sampling never disturbs the learner's own stream.
+    /// log-probabilities under the current policy, with the simulator's sampler
+    /// ([`sample_gaussian`]). `rng` is the caller's (per env or runtime), so sampling never
+    /// disturbs the learner's own stream.
     pub fn sample_actions(
         &self,
         obs: &[[f32; OBS_DIM]],
@@ -283,12 +284,7 @@ impl Learner {
             .into_iter()
             .map(|mean| {
                 let mut action = [0.0f32; ACT_DIM];
-                let mut logprob = 0.0f32;
-                for k in 0..ACT_DIM {
-                    let noise = rng.normal() as f32;
-                    action[k] = mean[k] + log_std[k].exp() * noise;
-                    logprob += -0.5 * noise * noise - log_std[k] - HALF_LN_2PI;
-                }
+                let logprob = sample_gaussian(&mean, log_std, rng, &mut action);
                 SampledAction { action, logprob }
             })
             .collect())

@@ -108,16 +108,9 @@ impl PolicyController {
 
     /// The unclipped action and its log-probability under the policy (the sim clips it).
     pub fn sample(&mut self, obs: &[f32; OBS_DIM]) -> ([f32; ACT_DIM], f32) {
-        let mut mean = [0.0; ACT_DIM];
-        self.policy.mean_action(obs, &mut mean);
-        let log_std = self.policy.log_std();
-        let mut action = mean;
-        if self.stochastic {
-            for (a, s) in action.iter_mut().zip(log_std) {
-                *a += s.exp() * self.rng.normal() as f32;
-            }
-        }
-        let lp = gaussian_log_prob(&action, &mean, log_std);
+        let mut action = [0.0; ACT_DIM];
+        let rng = self.stochastic.then_some(&mut self.rng);
+        let lp = self.policy.sample(obs, rng, &mut action);
         (action, lp)
     }
 }
