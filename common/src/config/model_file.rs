@@ -1,0 +1,136 @@
+//! Reading `estimator.model`: the offline analysis's `results.json`, checked against the
+//! config that names it.
+
+use super::range::invalid;
+use super::{ConfigError, EstimatorConfig, MixtureFeature};
+use serde::Deserialize;
+
+/// A terrain mixture fitted offline, as [`EstimatorConfig::model`] holds it: components by
+/// ascending mean (0 = flat), over `feature` (files written before it existed: `std`).
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct OfflineMixture {
+    pub window: usize,
+    #[serde(default)]
+    pub feature: MixtureFeature,
+    pub weights: Vec<f64>,
+    pub means: Vec<f64>,
+    pub stds: Vec<f64>,
+}
+
+impl EstimatorConfig {
+    /// The fit of [`model`](Self::model) for `online-window`; `None` without a model.
+    pub fn offline_mixture(&self) -> Result<Option<OfflineMixture>, ConfigError> {
+        #[derive(Deserialize)]
+        struct Analysis {
+            windows: Vec<OfflineMixture>,
+        }
+        let Some(path) = &self.model else {
+            return Ok(None);
+        };
+        let bad = |reason: String| invalid("estimator.model", path, reason);
+        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+        let analysis: Analysis = serde_json::from_str(&text).map_err(|e| {
+            bad(format!(
+                "not the results.json of `estimator-proc analyze`: {e}"
+            ))
+        })?;
+        let found: Vec<usize> = analysis.windows.iter().map(|m| m.window).collect();
+        let m = analysis
+            .windows
+            .into_iter()
+            .find(|m| m.window == self.online_window)
+            .ok_or_else(|| {
+                bad(format!(
+                    "holds fits for windows {found:?}, none for estimator.online-window {}",
+                    self.online_window
+                ))
+            })?;
+        if m.feature != self.feature {
+            return Err(bad(format!(
+                "its fit is over `{}`, but estimator.feature is `{}`",
+                m.feature.name(),
+                self.feature.name()
+            )));
+        }
+        let k = self.components;
+        if [&m.weights, &m.means, &m.stds].iter().any(|v| v.len() != k) {
+            return Err(bad(format!(
+                "its fit for window {} does not have estimator.components = {k} components",
+                m.window
+            )));
+        }
+        let finite = m.weights.iter().chain(&m.means).all(|v| v.is_finite());
+        if !finite || !m.stds.iter().all(|s| s.is_finite() && *s > 0.0) {
+            return Err(bad(format!(
+                "its fit for window {} has a non-finite parameter or a std that is not positive",
+                m.window
+            )));
+        }
+        Ok(Some(m))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Config;
+
+    /// SPEC S7: the online estimator can start from the offline analysis's mixture for its
+    /// window; a file without one is refused when the config is checked.
+    #[test]
+    fn an_offline_model_is_read_for_the_online_window() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let results = dir.path().join("results.json");
+        let fit = |w: usize, std: f64| {
+            format!(
+                r#"{{"window": {w}, "n": 9, "weights": [0.5, 0.5], "means": [0.02, 0.08], "stds": [0.01, {std}], "accuracy": 0.9}}"#
+            )
+        };
+        let write = |fits: &[String]| {
+            let text = format!(r#"{{"input": "t.csv", "windows": [{}]}}"#, fits.join(","));
+            std::fs::write(&results, text).expect("write");
+        };
+        write(&[fit(10, 0.04), fit(70, 0.03)]);
+        let mut e = EstimatorConfig {
+            model: Some(results.clone()),
+            refit_every: 0,
+            ..EstimatorConfig::default()
+        };
+        let m = e.offline_mixture().expect("read").expect("a model");
+        assert_eq!(
+            (m.window, m.means, m.stds),
+            (70, vec![0.02, 0.08], vec![0.01, 0.03])
+        );
+        e.online_window = 40;
+        let err = e.offline_mixture().expect_err("no fit for 40").to_string();
+        assert!(
+            err.contains("windows [10, 70], none for estimator.online-window 40"),
+            "{err}"
+        );
+        e.online_window = 70;
+        // A fit over log std is refused by a config that classifies the std itself.
+        write(&[fit(70, 0.03).replace(r#""n": 9"#, r#""feature": "log-std", "n": 9"#)]);
+        let err = e.offline_mixture().expect_err("other feature").to_string();
+        assert!(
+            err.contains("over `log-std`, but estimator.feature is `std`"),
+            "{err}"
+        );
+        e.feature = MixtureFeature::LogStd;
+        assert!(e.offline_mixture().expect("read").is_some());
+        e.feature = MixtureFeature::Std;
+        write(&[fit(70, 0.0)]);
+        let err = e.offline_mixture().expect_err("zero std").to_string();
+        assert!(err.contains("std that is not positive"), "{err}");
+        std::fs::write(&results, "[]").expect("write");
+        let err = e
+            .offline_mixture()
+            .expect_err("not an analysis")
+            .to_string();
+        assert!(err.starts_with("config field `estimator.model`"), "{err}");
+        let cfg = Config {
+            estimator: e,
+            ..Config::default()
+        };
+        assert!(cfg.validate().is_err(), "checked with the config");
+    }
+}

@@ -1,0 +1,196 @@
+//! `[run]`: how runs are named, seeded and paced, and the policy slots their learners fill.
+
+use super::ConfigError;
+use super::range::invalid;
+use serde::{Deserialize, Serialize};
+use std::path::PathBuf;
+
+/// How runs are named, seeded and paced.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct RunConfig {
+    /// Master seed; every process derives its streams from it. Any u64. Default 1.
+    pub seed: u64,
+    /// `sync`: the sim waits for the policy learned from each rollout (on-policy PPO);
+    /// `async`: the sim never waits. Default `sync`.
+    pub mode: LearnMode,
+    /// Total environment steps (decision steps summed over envs) to train for. Default 2.5 M
+    /// (SPEC S6). Range 1 ..= 10^10.
+    pub total_steps: u64,
+    /// Directory under which each run gets `<out-dir>/<run-id>/`. Default `runs`.
+    pub out_dir: PathBuf,
+    /// The learners of the run, one per policy slot (DESIGN §5). A `general` learner trains on
+    /// every transition; a `flat` or `rough` one only on those the estimator assigned to its
+    /// terrain (SPEC S8). Each slot at most once. Default `["general"]`.
+    pub learners: Vec<PolicySlot>,
+    /// Start every learner from this learner checkpoint's weights and observation statistics
+    /// with fresh counters and optimizer (a warm start, e.g. the general model from the flat
+    /// one). Relative paths are relative to the config file. Default none.
+    pub init_from: Option<PathBuf>,
+    /// Policy slots served frozen from a learner checkpoint, never trained (evaluation, e.g.
+    /// switching between fixed FTM and RTM): `{ flat = "ftm.ckpt", rough = "rtm.ckpt" }`.
+    /// Relative paths are relative to the config file. No slot may also be in `learners`.
+    pub frozen: std::collections::BTreeMap<PolicySlot, PathBuf>,
+    /// The sim also writes every env's per-tick telemetry to `<run dir>/telemetry.csv`, as
+    /// `sim-proc --telemetry` does (one row per env and tick; large). Default false.
+    pub telemetry_csv: bool,
+}
+
+/// A policy slot of the sim's pool (DESIGN §5): what a learner fills and an env acts with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PolicySlot {
+    General,
+    Flat,
+    Rough,
+}
+
+impl PolicySlot {
+    pub const ALL: [PolicySlot; 3] = [PolicySlot::General, PolicySlot::Flat, PolicySlot::Rough];
+
+    /// The slot's index on the wire (`PolicyHeader::slot`, `Transition::slot`).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            PolicySlot::General => "general",
+            PolicySlot::Flat => "flat",
+            PolicySlot::Rough => "rough",
+        }
+    }
+
+    /// The process (and shared-memory node) name of the slot's learner.
+    pub fn learner_name(self) -> &'static str {
+        match self {
+            PolicySlot::General => "learner",
+            PolicySlot::Flat => "learner-flat",
+            PolicySlot::Rough => "learner-rough",
+        }
+    }
+
+    /// Parses a slot name (`general`, `flat`, `rough`), for command lines.
+    pub fn parse(name: &str) -> Result<Self, String> {
+        Self::ALL
+            .into_iter()
+            .find(|s| s.name() == name)
+            .ok_or_else(|| format!("unknown policy slot `{name}`: use general, flat or rough"))
+    }
+
+    /// The estimator class whose transitions the slot's learner trains on (class 0 is the
+    /// mixture component with the lowest mean, i.e. flat); `None`: all.
+    pub fn class(self) -> Option<u8> {
+        match self {
+            PolicySlot::General => None,
+            PolicySlot::Flat => Some(0),
+            PolicySlot::Rough => Some(1),
+        }
+    }
+
+    /// The specialist for an estimator class (SPEC S8), if there is one.
+    pub fn for_class(class: u8) -> Option<Self> {
+        match class {
+            0 => Some(PolicySlot::Flat),
+            1 => Some(PolicySlot::Rough),
+            _ => None,
+        }
+    }
+}
+
+/// Which slot an env acts with (DESIGN §5).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Acting {
+    General,
+    Flat,
+    Rough,
+    /// The specialist for the estimator's current class, changed only after the estimate has
+    /// held for `switch-dwell` ticks (SPEC S8).
+    Switch,
+}
+
+impl Acting {
+    /// The slot every env acts with, unless switching.
+    pub fn fixed(self) -> Option<PolicySlot> {
+        match self {
+            Acting::General => Some(PolicySlot::General),
+            Acting::Flat => Some(PolicySlot::Flat),
+            Acting::Rough => Some(PolicySlot::Rough),
+            Acting::Switch => None,
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum LearnMode {
+    Sync,
+    Async,
+}
+
+impl Default for RunConfig {
+    fn default() -> Self {
+        Self {
+            seed: 1,
+            mode: LearnMode::Sync,
+            total_steps: 2_500_000,
+            out_dir: PathBuf::from("runs"),
+            learners: vec![PolicySlot::General],
+            init_from: None,
+            frozen: Default::default(),
+            telemetry_csv: false,
+        }
+    }
+}
+
+impl RunConfig {
+    pub(super) fn validate(&self) -> Result<(), ConfigError> {
+        if self.total_steps == 0 {
+            return Err(invalid(
+                "run.total-steps",
+                self.total_steps,
+                "must be at least 1",
+            ));
+        }
+        if (self.learners.is_empty() && self.frozen.is_empty())
+            || (1..self.learners.len()).any(|i| self.learners[..i].contains(&self.learners[i]))
+            || self.learners.iter().any(|s| self.frozen.contains_key(s))
+        {
+            return Err(invalid(
+                "run.learners",
+                &self.learners,
+                "needs at least one slot (or a frozen one), each at most once and not also in run.frozen",
+            ));
+        }
+        if let Some(p) = self.frozen.values().find(|p| !p.is_file()) {
+            return Err(invalid("run.frozen", p, "file not found"));
+        }
+        if let Some(p) = &self.init_from
+            && !p.is_file()
+        {
+            return Err(invalid("run.init-from", p, "file not found"));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::tests::parse;
+
+    #[test]
+    fn learner_slots_are_checked() {
+        let c = parse("[run]\nlearners = [\"flat\", \"rough\"]\n[sim]\nacting = \"switch\"\n")
+            .expect("valid");
+        assert_eq!(c.run.learners, [PolicySlot::Flat, PolicySlot::Rough]);
+        assert_eq!(c.sim.acting.fixed(), None);
+        assert_eq!(PolicySlot::for_class(1), Some(PolicySlot::Rough));
+        assert_eq!(PolicySlot::Flat.class(), Some(0));
+        let err = parse("[run]\nlearners = [\"flat\", \"flat\"]\n").expect_err("twice");
+        assert!(err.to_string().contains("run.learners"), "{err}");
+        let err = parse("[run]\ninit-from = \"/nonexistent.ckpt\"\n").expect_err("missing");
+        assert!(err.to_string().contains("run.init-from"), "{err}");
+    }
+}

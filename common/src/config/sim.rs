@@ -1,0 +1,205 @@
+//! `[sim]`: the envs, their areas and the physics timing; terrain, robot and task have their
+//! own sections.
+
+use super::range::{count_in, in_range, invalid};
+use super::{Acting, ConfigError, RobotConfig, TaskConfig, TerrainConfig};
+use serde::{Deserialize, Serialize};
+
+/// Which area an env lives in: SPEC S1's two training areas, or the mixed course (our
+/// extension, for the switching evaluation), flat ground that turns rough part-way.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AreaKind {
+    #[default]
+    Flat,
+    Rough,
+    Mixed,
+}
+
+impl AreaKind {
+    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed. Telemetry never carries 2: a mixed
+    /// env reports the ground under the robot.
+    pub fn code(self) -> u8 {
+        match self {
+            AreaKind::Flat => 0,
+            AreaKind::Rough => 1,
+            AreaKind::Mixed => 2,
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            AreaKind::Flat => "flat",
+            AreaKind::Rough => "rough",
+            AreaKind::Mixed => "mixed",
+        }
+    }
+}
+
+/// An axis-aligned rectangle on the ground (X-Z plane), metres.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Rect {
+    /// [min, max] along X, metres.
+    pub x: [f64; 2],
+    /// [min, max] along Z, metres.
+    pub z: [f64; 2],
+}
+
+impl Rect {
+    pub fn contains(&self, x: f64, z: f64, margin: f64) -> bool {
+        x >= self.x[0] - margin
+            && x <= self.x[1] + margin
+            && z >= self.z[0] - margin
+            && z <= self.z[1] + margin
+    }
+}
+
+/// The simulator: envs, physics timing, terrain, robot and task rules.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct SimConfig {
+    /// Envs in the flat area. 0 ..= 1024. Default 9 (SPEC S6, initial flat model).
+    pub flat_envs: usize,
+    /// Envs in the rough area. 0 ..= 1024. Default 0.
+    pub rough_envs: usize,
+    /// Envs on the mixed course (`terrain.mixed-area`), after the rough ones. 0 ..= 1024.
+    /// Default 0.
+    pub mixed_envs: usize,
+    /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
+    pub threads: usize,
+    /// The policy slot the envs act with, or `switch` (DESIGN §5). A slot without a policy
+    /// yet falls back to `general`, then to any slot that has one. Default `general`.
+    pub acting: Acting,
+    /// Switching: ticks a new terrain estimate must hold before an env changes policy. 1 ..= 10000. Default 10.
+    pub switch_dwell: usize,
+    /// Act with each policy's mean action instead of a sample (evaluation; the rollouts'
+    /// log-probabilities are then not those of the actions). Default false.
+    pub mean_actions: bool,
+    /// Telemetry readers (estimator, launcher) are woken at most once per this many
+    /// microseconds; every tick is still published and read, in batches. A wake-up is a
+    /// datagram per reader, about 20 µs of a ~220 µs single-env tick, so waking per tick costs
+    /// the sim a tenth of its speed; the price is up to this much delay before a reader sees
+    /// a tick. 0: wake them on every tick. 0 ..= 1000000. Default 1000.
+    pub telemetry_notify_us: usize,
+    /// Physics time step, seconds. SPEC S2 (interpretation: Unity's default). (0, 0.1]. Default 0.02.
+    pub physics_dt: f64,
+    /// Physics steps per decision step. SPEC S2. 1 ..= 100. Default 5.
+    pub substeps: usize,
+    pub terrain: TerrainConfig,
+    pub robot: RobotConfig,
+    pub task: TaskConfig,
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        Self {
+            flat_envs: 9,
+            rough_envs: 0,
+            mixed_envs: 0,
+            threads: 2,
+            acting: Acting::General,
+            switch_dwell: 10,
+            mean_actions: false,
+            telemetry_notify_us: 1000,
+            physics_dt: 0.02,
+            substeps: 5,
+            terrain: TerrainConfig::default(),
+            robot: RobotConfig::default(),
+            task: TaskConfig::default(),
+        }
+    }
+}
+
+impl SimConfig {
+    pub fn num_envs(&self) -> usize {
+        self.flat_envs + self.rough_envs + self.mixed_envs
+    }
+
+    /// The area of env `i`: flat envs first, then rough, then mixed.
+    pub fn area_of(&self, env: usize) -> AreaKind {
+        if env < self.flat_envs {
+            AreaKind::Flat
+        } else if env < self.flat_envs + self.rough_envs {
+            AreaKind::Rough
+        } else {
+            AreaKind::Mixed
+        }
+    }
+
+    /// "4 flat + 4 rough envs", with "+ n mixed" when the mixed course has envs.
+    pub fn describe_envs(&self) -> String {
+        let mixed = if self.mixed_envs > 0 {
+            format!(" + {} mixed", self.mixed_envs)
+        } else {
+            String::new()
+        };
+        format!(
+            "{} flat + {} rough{mixed} envs",
+            self.flat_envs, self.rough_envs
+        )
+    }
+
+    /// `n` envs, all in `area`.
+    pub fn only_in(&mut self, area: AreaKind, n: usize) {
+        self.flat_envs = if area == AreaKind::Flat { n } else { 0 };
+        self.rough_envs = if area == AreaKind::Rough { n } else { 0 };
+        self.mixed_envs = if area == AreaKind::Mixed { n } else { 0 };
+    }
+
+    /// Decision step, seconds (0.1 by default, SPEC S2).
+    pub fn decision_dt(&self) -> f64 {
+        self.physics_dt * self.substeps as f64
+    }
+
+    /// Its own fields, then terrain, robot and task.
+    pub(super) fn validate(&self) -> Result<(), ConfigError> {
+        count_in("sim.flat-envs", self.flat_envs, 0, 1024)?;
+        count_in("sim.rough-envs", self.rough_envs, 0, 1024)?;
+        count_in("sim.mixed-envs", self.mixed_envs, 0, 1024)?;
+        if self.num_envs() == 0 {
+            return Err(invalid(
+                "sim.flat-envs",
+                self.flat_envs,
+                "flat-envs + rough-envs + mixed-envs must be at least 1",
+            ));
+        }
+        count_in("sim.switch-dwell", self.switch_dwell, 1, 10_000)?;
+        count_in(
+            "sim.telemetry-notify-us",
+            self.telemetry_notify_us,
+            0,
+            1_000_000,
+        )?;
+        count_in("sim.threads", self.threads, 1, 64)?;
+        in_range("sim.physics-dt", self.physics_dt, 1e-4, 0.1)?;
+        count_in("sim.substeps", self.substeps, 1, 100)?;
+        self.terrain.validate()?;
+        self.robot.validate()?;
+        self.task.validate()?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn areas_are_assigned_flat_first() {
+        let s = SimConfig {
+            flat_envs: 2,
+            rough_envs: 1,
+            mixed_envs: 1,
+            ..SimConfig::default()
+        };
+        use AreaKind::{Flat, Mixed, Rough};
+        assert_eq!(
+            (0..4).map(|i| s.area_of(i)).collect::<Vec<_>>(),
+            vec![Flat, Flat, Rough, Mixed]
+        );
+        let mut only = s.clone();
+        only.only_in(Mixed, 3);
+        assert_eq!((only.num_envs(), only.area_of(0)), (3, Mixed));
+    }
+}

@@ -1,0 +1,86 @@
+//! Tests of the config as a whole: defaults, parse errors, ranges across sections, paths.
+
+use super::*;
+
+/// Parses and validates `text`, labelled `t.toml`.
+pub(super) fn parse(text: &str) -> Result<Config, ConfigError> {
+    let c = Config::parse(text, Path::new("t.toml"))?;
+    c.validate()?;
+    Ok(c)
+}
+
+#[test]
+fn defaults_are_valid_and_round_trip() {
+    let c = Config::default();
+    c.validate().expect("default config valid");
+    let back = parse(&c.to_toml()).expect("round trip");
+    assert_eq!(back, c);
+    assert!((c.sim.decision_dt() - 0.1).abs() < 1e-12);
+}
+
+#[test]
+fn unknown_key_names_its_line() {
+    let e = parse("[sim]\nflat-envs = 2\nwheel = 3\n").expect_err("unknown");
+    let msg = e.to_string();
+    assert!(
+        msg.starts_with("t.toml:3:1: unknown field `wheel`"),
+        "{msg}"
+    );
+    assert!(!msg.contains('\n'));
+}
+
+#[test]
+fn out_of_range_names_the_field() {
+    let e = parse("[sim.robot]\nwheel-radius = 2.0\n").expect_err("range");
+    assert_eq!(
+        e.to_string(),
+        "config field `sim.robot.wheel-radius` = 2.0: must be in [0.01, 0.2]"
+    );
+    let e = parse("[sim]\nflat-envs = 0\n").expect_err("no envs");
+    assert!(e.to_string().contains("sim.flat-envs"));
+    let e = parse("[reproduce]\neval-roughness-scale = 2.5\n").expect_err("range");
+    assert_eq!(
+        e.to_string(),
+        "config field `reproduce.eval-roughness-scale` = 2.5: must be in [0, 2]"
+    );
+    let e = parse("[reproduce]\nmargin-s = -0.1\n").expect_err("negative margin");
+    assert!(e.to_string().contains("reproduce.margin-s"), "{e}");
+    let e = parse("[ppo]\ncheckpoint-every = 4\nmilestone-every = 10\n").expect_err("unwritten");
+    assert_eq!(
+        e.to_string(),
+        "config field `ppo.milestone-every` = 10: must be a multiple of ppo.checkpoint-every (4): only written checkpoints can be kept"
+    );
+    let e = parse("[reproduce]\ncollect-envs = 0\n").expect_err("no robots");
+    assert_eq!(
+        e.to_string(),
+        "config field `reproduce.collect-envs` = 0: must be in [1, 512]"
+    );
+    let e = parse("[reproduce]\nspecialist-candidates = 101\n").expect_err("range");
+    assert!(
+        e.to_string().contains("reproduce.specialist-candidates"),
+        "{e}"
+    );
+    let e = parse("[sim.task]\nepisodes = \"reset\"\n").expect_err("unknown start");
+    assert!(
+        e.to_string().contains("chained") && e.to_string().contains("course"),
+        "{e}"
+    );
+}
+
+#[test]
+fn heightmap_path_survives_being_rewritten_elsewhere() {
+    let dir = std::env::temp_dir().join(format!("lavatube-hm-{}", std::process::id()));
+    std::fs::create_dir_all(dir.join("run")).expect("dirs");
+    std::fs::write(dir.join("floor.grid"), "2 2\n0 0\n0 0\n").expect("grid");
+    let cfg_path = dir.join("c.toml");
+    let body = "[sim.terrain.heightmap]\npath = \"floor.grid\"\nmetres-per-pixel = 0.1\norigin = [0.0, 0.0]\n";
+    std::fs::write(&cfg_path, body).expect("config");
+    let cfg = Config::load(&cfg_path).expect("relative to the config file");
+    let hm = cfg.sim.terrain.heightmap.clone().expect("heightmap");
+    assert!(hm.path.is_absolute() && hm.path.exists(), "{:?}", hm.path);
+    // The launcher writes the resolved config into the run directory; children load it there.
+    let resolved = dir.join("run/config.toml");
+    std::fs::write(&resolved, cfg.to_toml()).expect("resolved");
+    assert_eq!(Config::load(&resolved).expect("still found"), cfg);
+    std::fs::remove_dir_all(&dir).ok();
+}
