@@ -6,29 +6,10 @@ use std::path::PathBuf;
 /// What can go wrong in the estimator library.
 #[derive(Debug, thiserror::Error)]
 pub enum EstimatorError {
-    #[error("cannot read {path}: {reason}")]
-    Read { path: PathBuf, reason: String },
     #[error("cannot write {path}: {reason}")]
     Write { path: PathBuf, reason: String },
-    #[error("{path}: missing column `{column}` (a telemetry CSV needs the columns: {expected})")]
-    MissingColumn {
-        path: PathBuf,
-        column: String,
-        expected: String,
-    },
-    #[error("{path}: line {line}, column `{field}`: {reason}")]
-    Parse {
-        path: PathBuf,
-        line: u64,
-        field: String,
-        reason: String,
-    },
-    #[error("{path}: line {line}: {reason}")]
-    Malformed {
-        path: PathBuf,
-        line: u64,
-        reason: String,
-    },
+    #[error(transparent)]
+    Telemetry(#[from] common::telemetry::TelemetryError),
     #[error("{path}: line {line}, column `{field}` is {value}; it must be a finite number")]
     NonFiniteField {
         path: PathBuf,
