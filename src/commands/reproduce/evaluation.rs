@@ -1,0 +1,202 @@
+//! Stage f's evaluation and stage e's validation: every model drives the same seeded
+//! courses, alone in `sim-proc` or switching through the full runtime.
+
+use super::super::run::execute;
+use super::legs::{Cell, Evaluated, Legs, legs_in};
+use super::pipeline::Pipeline;
+use crate::runtime;
+use crate::runtime::TELEMETRY_CSV;
+use anyhow::Context;
+use common::Config;
+use common::config::{Acting, AreaKind, EpisodeStart, PolicySlot};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+/// Where stage f evaluates every model: SPEC S8's two areas, then the mixed course.
+pub(super) const EVAL_AREAS: [AreaKind; 3] = [AreaKind::Flat, AreaKind::Rough, AreaKind::Mixed];
+
+/// Validation courses' seeds start this far from the run's, so stage e's choice of
+/// specialist never drives stage f's courses.
+const VALIDATION_SEEDS: u64 = 1 << 20;
+
+/// The courses an evaluation drives: the stage that drives them (for progress lines), the
+/// first seed (a cell short of its episodes drives the next), the episodes a cell needs, and
+/// the ticks per env of one run.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Courses {
+    stage: &'static str,
+    seed: u64,
+    episodes: u64,
+    ticks: u64,
+}
+
+/// Stage f's guess at the ticks an evaluation episode lasts, to size its runs: trained
+/// models reach the target in about 40 (3.5-4 s at 0.1 s per tick).
+const EPISODE_TICKS_GUESS: u64 = 50;
+
+impl Pipeline {
+    /// `sim-proc` alone with a policy file: `steps` decision steps per env, telemetry to `csv`.
+    pub(super) fn drive(
+        &self,
+        cfg: &Config,
+        weights: &Path,
+        steps: u64,
+        csv: &Path,
+    ) -> anyhow::Result<()> {
+        let dir = csv.parent().unwrap_or(Path::new("."));
+        let cfg_path = csv.with_extension("toml");
+        std::fs::write(&cfg_path, cfg.to_toml())
+            .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+        let run = Command::new(runtime::locate("sim-proc")?)
+            .arg("--config")
+            .arg(&cfg_path)
+            .args(["--controller", "policy", "--weights"])
+            .arg(weights)
+            .args(["--steps", &steps.to_string(), "--telemetry"])
+            .arg(csv)
+            .current_dir(dir)
+            .output()?;
+        let log = csv.with_extension("log");
+        std::fs::write(&log, [run.stdout, run.stderr].concat())
+            .with_context(|| format!("cannot write {}", log.display()))?;
+        anyhow::ensure!(
+            run.status.success(),
+            "sim-proc on {} failed; see {}",
+            weights.display(),
+            log.display()
+        );
+        Ok(())
+    }
+
+    /// Evaluates `model` in `area` on `courses`: runs `run_part` (the config, the part's
+    /// name; returns its telemetry CSV) with seeds `courses.seed`, +1, … until the cell has
+    /// its episodes. Every model runs the same seeds on the same courses, so their legs pair up.
+    fn evaluate(
+        &self,
+        model: &str,
+        area: AreaKind,
+        courses: Courses,
+        mut run_part: impl FnMut(&Config, &str) -> anyhow::Result<PathBuf>,
+    ) -> anyhow::Result<Evaluated> {
+        let mut cfg = self.eval_in(area);
+        cfg.run.seed = courses.seed;
+        let mut legs = Legs::new();
+        let dt = cfg.sim.decision_dt();
+        while Cell::of(&legs, dt).episodes < courses.episodes {
+            let name = format!("{}-{}-{}", model.to_lowercase(), area.name(), legs.len());
+            let csv = run_part(&cfg, &name)?;
+            let part = legs_in(&csv)?;
+            anyhow::ensure!(
+                part.iter().any(|env| !env.is_empty()),
+                "{} holds no finished episode",
+                csv.display()
+            );
+            legs.push(part);
+            cfg.run.seed = cfg.run.seed.wrapping_add(1);
+        }
+        let cell = Cell::of(&legs, dt);
+        self.say(&format!(
+            "{}: {model} on {} ground: {:.1}% of {} episodes, reach s {}",
+            courses.stage,
+            area.name(),
+            cell.success_pct(),
+            cell.episodes,
+            cell.reach()
+        ));
+        Ok(Evaluated {
+            model: model.into(),
+            area,
+            legs,
+        })
+    }
+
+    /// `weights` alone (`sim-proc`) on `courses` in `area`, its telemetry in `dir`.
+    pub(super) fn evaluate_policy(
+        &self,
+        model: &str,
+        weights: &Path,
+        area: AreaKind,
+        courses: Courses,
+        dir: &Path,
+    ) -> anyhow::Result<Evaluated> {
+        self.evaluate(model, area, courses, |cfg, part| {
+            let csv = dir.join(format!("{part}.csv"));
+            self.drive(cfg, weights, courses.ticks, &csv)?;
+            Ok(csv)
+        })
+    }
+
+    /// SPEC S8's switching policy in `area`: FTM and RTM served frozen, each env acting with
+    /// the one its live terrain estimate points to (mean actions), through the full runtime
+    /// with the estimator.
+    pub(super) fn switching(
+        &self,
+        area: AreaKind,
+        frozen: &std::collections::BTreeMap<PolicySlot, PathBuf>,
+        eval: &Path,
+    ) -> anyhow::Result<Evaluated> {
+        let courses = self.test_courses();
+        let steps = courses.ticks * self.base.reproduce.eval_envs as u64;
+        self.evaluate("switching", area, courses, |base, name| {
+            let mut cfg = base.clone();
+            cfg.run.learners.clear();
+            cfg.run.frozen = frozen.clone();
+            cfg.run.mode = common::config::LearnMode::Async;
+            cfg.run.out_dir = eval.to_path_buf();
+            cfg.run.telemetry_csv = true;
+            cfg.run.total_steps = steps;
+            cfg.sim.acting = Acting::Switch;
+            cfg.sim.mean_actions = true;
+            // SPEC S7-S8: the estimator classifies with stage d's mixture, fitted on both
+            // terrains, and is not refitted: a fit on one area's windows alone would split
+            // that terrain into two classes and hand half of it to the other specialist.
+            cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
+            cfg.estimator.refit_every = 0;
+            cfg.validate()?;
+            if !execute(&cfg, name, &self.run_id(name), self.quiet)? {
+                anyhow::bail!("interrupted during {name}; run again to resume");
+            }
+            Ok(eval.join(name).join(TELEMETRY_CSV))
+        })
+    }
+
+    /// Stage f's config in `area`: `reproduce.eval-envs` envs, all there, on the
+    /// evaluation's ground, each driving a seeded course (the same legs for every model).
+    fn eval_in(&self, area: AreaKind) -> Config {
+        let r = &self.base.reproduce;
+        let mut c = self.base.clone();
+        c.sim.only_in(area, r.eval_envs);
+        c.sim.task.episodes = EpisodeStart::Course;
+        if let Some(scale) = r.eval_roughness_scale {
+            c.sim.terrain.roughness_scale = scale;
+        }
+        c
+    }
+
+    /// Courses of `episodes` per cell from seed `seed` on. Ticks per env of one run: enough
+    /// for the episodes at `EPISODE_TICKS_GUESS` ticks each, and for every env to end one
+    /// episode however long it lasts. A cell short of its episodes runs again with the next seed.
+    fn courses(&self, stage: &'static str, seed: u64, episodes: u64) -> Courses {
+        let envs = self.base.reproduce.eval_envs as u64;
+        Courses {
+            stage,
+            seed,
+            episodes,
+            ticks: (episodes.div_ceil(envs) * EPISODE_TICKS_GUESS)
+                .max(self.base.sim.task.longest_episode_ticks() + 1),
+        }
+    }
+
+    /// Stage f's courses, from the run's seed on.
+    pub(super) fn test_courses(&self) -> Courses {
+        let r = &self.base.reproduce;
+        self.courses("f-eval", self.base.run.seed, r.eval_episodes)
+    }
+
+    /// Stage e's validation courses, `VALIDATION_SEEDS` away from stage f's.
+    pub(super) fn validation_courses(&self) -> Courses {
+        let r = &self.base.reproduce;
+        let seed = self.base.run.seed.wrapping_add(VALIDATION_SEEDS);
+        self.courses("e-select", seed, r.validation_episodes)
+    }
+}

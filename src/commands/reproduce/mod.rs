@@ -1,0 +1,104 @@
+//! `lavatube reproduce`: the paper's experiment as one resumable command (DESIGN §6).
+//!
+//! Stages, each in its own directory under `--out`, each skipped when its `stage.json` says
+//! it finished (an unfinished one is redone from scratch):
+//! a. `a-flat`: the initial flat model, from scratch (SPEC S6);
+//! b. `b-general`: the general model on flat + rough ground, warm-started from (a);
+//! c. `c-collect`: telemetry of the general model (mean actions), both areas (SPEC S7);
+//! d. `d-analysis`: Table 3 and Figs. 5–8 (`estimator-proc analyze`);
+//! e. `e-specialists`: FTM and RTM fine-tuned from (b) at once, each on the transitions the
+//!    estimator (not the true area) assigns to its terrain, acting by switching (SPEC S8);
+//!    `e-select` (with `reproduce.specialist-candidates`): each specialist is the best on its
+//!    own terrain's validation courses of the general model and stage e's milestones;
+//! f. `f-eval`: success rate and reach time of general, FTM and RTM in each area (Table 1),
+//!    and of switching between FTM and RTM on stage d's terrain mixture, every model on the
+//!    same seeded courses (`EpisodeStart::Course`);
+//! g. `report.md`: every table beside the paper's numbers, figures, learning curves, and the
+//!    paper's claims about Table 1 checked leg by leg on the legs both models drove.
+//!
+//! Modules: [`pipeline`] runs the stages in order, [`stages`] keeps their directories and
+//! done markers, [`evaluation`] drives the seeded courses whose [`legs`] pair up,
+//! [`selection`] picks the specialists, [`statistics`] and [`checks`] compare the models,
+//! [`report`] writes the Markdown.
+
+mod checks;
+mod evaluation;
+mod legs;
+mod pipeline;
+mod report;
+mod selection;
+mod stages;
+mod statistics;
+
+use super::UserError;
+use anyhow::Context;
+use common::Config;
+use common::config::PolicySlot;
+use pipeline::Pipeline;
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+#[derive(Debug, clap::Args)]
+pub struct ReproduceArgs {
+    /// The pipeline's config: its `[reproduce]` section sizes the stages, the rest applies to
+    /// every stage.
+    #[arg(long, default_value = "configs/paper.toml")]
+    pub config: PathBuf,
+    /// Output directory (stages are resumed from it).
+    #[arg(long, default_value = "reproduce")]
+    pub out: PathBuf,
+    /// No progress bars (for logs and CI).
+    #[arg(long)]
+    pub quiet: bool,
+    /// Repeat the pipeline with seeds `run.seed`, +1, …, each in `OUT/seed-<seed>/`, and
+    /// report every number as mean ± 95 % CI.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=20))]
+    pub seeds: u64,
+}
+
+pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
+    let base = Config::load(&args.config)?;
+    let out = std::path::absolute(&args.out)
+        .with_context(|| format!("cannot resolve {}", args.out.display()))?;
+    if base.run.learners != [PolicySlot::General] || base.run.init_from.is_some() {
+        return Err(UserError(
+            "reproduce sets run.learners and run.init-from per stage: leave them unset".into(),
+        )
+        .into());
+    }
+    let mut runs = Vec::new();
+    for k in 0..args.seeds {
+        let mut cfg = base.clone();
+        cfg.run.seed = base.run.seed.wrapping_add(k);
+        let dir = if args.seeds == 1 {
+            out.clone()
+        } else {
+            out.join(format!("seed-{}", cfg.run.seed))
+        };
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create {}", dir.display()))?;
+        let p = Pipeline {
+            base: cfg,
+            out: dir,
+            quiet: args.quiet,
+        };
+        let cells = pipeline::run(&p)?;
+        runs.push((p, cells));
+    }
+    if args.seeds > 1 {
+        let path = out.join("report.md");
+        std::fs::write(&path, report::seeds_report(&runs)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        println!("report over {} seeds: {}", args.seeds, path.display());
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// The table row of `claim` in the Markdown `md`, for tests of the reports.
+#[cfg(test)]
+fn row_of(md: &str, claim: &str) -> String {
+    md.lines()
+        .find(|l| l.starts_with(&format!("| {claim} |")))
+        .unwrap_or_else(|| panic!("no row {claim} in\n{md}"))
+        .to_string()
+}

@@ -1,0 +1,332 @@
+//! The Markdown reports: one seed's `report.md` beside the paper's tables, and the report over
+//! seeds with every number as mean ± 95 % CI.
+
+use super::checks::{Check, checks, shape_checks};
+use super::legs::{Cell, Evaluated};
+use super::pipeline::Pipeline;
+use super::selection::{GENERAL, Selection, chosen_before};
+use super::statistics::mean_ci;
+use crate::runtime::learner_dir;
+use anyhow::Context;
+use common::config::{AreaKind, PolicySlot};
+
+/// One cell of the paper's Table 1: success %, mean reach time s, its std.
+type PaperCell = (f64, f64, f64);
+
+/// SPEC S8's Table 1 (50 trials per cell), per model: flat area, rough area.
+const PAPER_TABLE_1: [(&str, [PaperCell; 2]); 3] = [
+    ("general", [(100.0, 5.90, 2.54), (88.0, 10.51, 7.35)]),
+    ("FTM", [(98.0, 5.47, 1.64), (76.0, 9.63, 4.29)]),
+    ("RTM", [(98.0, 8.33, 5.92), (96.0, 8.96, 5.74)]),
+];
+
+/// SPEC S7's Table 3: window, accuracy %.
+const PAPER_TABLE_3: [(u64, f64); 4] = [(10, 61.13), (20, 70.73), (40, 85.87), (70, 98.79)];
+
+/// The heading of the specialists' choice, in a run's report and in the seeds report.
+const SELECTION_HEADING: &str = "## Specialists chosen on validation courses (stage e)";
+
+/// `mean ± ci` over seeds.
+fn pm(xs: &[f64], digits: usize) -> String {
+    let (m, h) = mean_ci(xs);
+    format!("{m:.digits$} ± {h:.digits$}")
+}
+
+/// The report over several seeds: every number as mean ± 95 % CI.
+pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
+    let mut md = format!(
+        "# lavatube reproduce over {} seeds\n\n\
+         Every number is the mean over seeds ± the half-width of its 95 % confidence interval \
+         (Student's t); each seed's own report is in `seed-<seed>/report.md`.\n\n\
+         ## Table 1\n\n\
+         | model | area | success % | reach s (mean) | paper: success % |\n\
+         |---|---|---:|---:|---:|\n",
+        runs.len()
+    );
+    let Some((_, first)) = runs.first() else {
+        return Ok(md);
+    };
+    for (i, Evaluated { model, area, .. }) in first.iter().enumerate() {
+        let cells: Vec<Cell> = runs
+            .iter()
+            .filter_map(|(p, c)| {
+                c.get(i)
+                    .map(|c| Cell::of(&c.legs, p.base.sim.decision_dt()))
+            })
+            .collect();
+        let success: Vec<f64> = cells.iter().map(|c| c.success_pct()).collect();
+        let reach: Vec<f64> = cells
+            .iter()
+            .filter(|c| c.successes > 0)
+            .map(|c| c.mean_reach_s)
+            .collect();
+        let paper = paper_cell(model, *area).map_or("-".into(), |(s, _, _)| format!("{s:.1}"));
+        md += &format!(
+            "| {model} | {} | {} | {} | {paper} |\n",
+            area.name(),
+            pm(&success, 1),
+            if reach.is_empty() {
+                "-".into()
+            } else {
+                pm(&reach, 2)
+            }
+        );
+    }
+    md += "\n## Shape checks (issue 7)\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |\n|---|---:|---:|---|\n";
+    let per_seed: Vec<(u64, Vec<Check>)> = runs
+        .iter()
+        .map(|(p, cells)| {
+            let r = &p.base.reproduce;
+            (
+                p.base.run.seed,
+                checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s)),
+            )
+        })
+        .collect();
+    for key in per_seed
+        .first()
+        .map(|(_, c)| c)
+        .into_iter()
+        .flatten()
+        .map(|c| &c.key)
+    {
+        let of_key: Vec<(u64, &Check)> = per_seed
+            .iter()
+            .filter_map(|(seed, cs)| cs.iter().find(|c| &c.key == key).map(|c| (*seed, c)))
+            .collect();
+        let d: Vec<f64> = of_key.iter().map(|(_, c)| c.paired.difference.0).collect();
+        let faster: Vec<f64> = of_key
+            .iter()
+            .filter(|(_, c)| c.paired.reached_by_both > 0)
+            .map(|(_, c)| c.paired.faster.0)
+            .collect();
+        let verdicts: Vec<String> = of_key
+            .iter()
+            .map(|(seed, c)| {
+                let versus = if c.claim == *key {
+                    String::new()
+                } else {
+                    format!(" ({})", c.claim)
+                };
+                format!("seed {seed}: {}{versus}", c.verdict)
+            })
+            .collect();
+        md += &format!(
+            "| {key} | {} | {} | {} |\n",
+            pm(&d, 1),
+            if faster.is_empty() {
+                "-".into()
+            } else {
+                pm(&faster, 2)
+            },
+            verdicts.join("; ")
+        );
+    }
+    let mut chosen = String::new();
+    // None without `specialist-candidates`, whatever an earlier config left in `e-select`.
+    for (p, _) in runs
+        .iter()
+        .filter(|(p, _)| p.base.reproduce.specialist_candidates > 0)
+    {
+        for s in chosen_before(p)?.into_iter().flatten() {
+            chosen += &format!(
+                "| {} | {} | {} |\n",
+                p.base.run.seed, s.model, s.candidates[s.chosen].label
+            );
+        }
+    }
+    if !chosen.is_empty() {
+        md += &format!(
+            "\n{SELECTION_HEADING}\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
+        );
+    }
+    md +=
+        "\n## Table 3: accuracy by window\n\n| window | accuracy % | paper % |\n|---:|---:|---:|\n";
+    let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> = Default::default();
+    for (p, _) in runs {
+        let path = p.stage_dir("d-analysis").join("results.json");
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&path)
+                .with_context(|| format!("cannot read {}", path.display()))?,
+        )?;
+        for w in json["windows"].as_array().into_iter().flatten() {
+            if let (Some(win), Some(acc)) = (w["window"].as_u64(), w["accuracy"].as_f64()) {
+                by_window.entry(win).or_default().push(100.0 * acc);
+            }
+        }
+    }
+    for (w, accs) in by_window {
+        let paper = PAPER_TABLE_3
+            .iter()
+            .find(|(pw, _)| *pw == w)
+            .map_or("-".into(), |(_, a)| format!("{a:.2}"));
+        md += &format!("| {w} | {} | {paper} |\n", pm(&accs, 2));
+    }
+    Ok(md)
+}
+
+/// Stage e's choice of specialists, when it validated candidates (`specialist-candidates`).
+fn selection_table(selections: &[Selection], episodes: u64) -> String {
+    if selections.iter().all(|s| s.candidates.len() < 2) {
+        return String::new();
+    }
+    let mut md = format!(
+        "\n{SELECTION_HEADING}\n\nEach specialist is the candidate that did best on its own terrain over validation courses (about {episodes} episodes each, seeds apart from the evaluation's): the general model it was fine-tuned from, or a checkpoint of its fine-tuning (`reproduce.specialist-candidates`). Best = the shortest reach time among those within `margin-pp` of the highest success rate, each measured on the legs all of them drove or reached (the table shows each candidate's own legs).\n\n| model | area | candidate | success % (episodes) | reach s, mean (std) | chosen |\n|---|---|---|---:|---:|:---:|\n"
+    );
+    for s in selections {
+        for (k, c) in s.candidates.iter().enumerate() {
+            let (success, reach) = c.cell.map_or(("-".into(), "-".into()), |cell| {
+                (
+                    format!("{:.1} ({})", cell.success_pct(), cell.episodes),
+                    cell.reach(),
+                )
+            });
+            md += &format!(
+                "| {} | {} | {} | {success} | {reach} | {} |\n",
+                s.model,
+                s.area.name(),
+                c.label,
+                if k == s.chosen { "**yes**" } else { "" }
+            );
+        }
+    }
+    md
+}
+
+/// The paper's Table 1 cell for `model` in `area`, if the paper has one.
+fn paper_cell(model: &str, area: AreaKind) -> Option<PaperCell> {
+    PAPER_TABLE_1
+        .iter()
+        .find(|(m, _)| *m == model)
+        .and_then(|(_, a)| a.get(area.code() as usize).copied())
+}
+
+pub(super) fn report(
+    p: &Pipeline,
+    cells: &[Evaluated],
+    selections: &[Selection],
+) -> anyhow::Result<String> {
+    let mut md = String::from("# lavatube reproduce\n\n");
+    md += "The paper's pipeline (SPEC S6-S8) regenerated by `lavatube reproduce`; the resolved \
+           config is `config.toml` beside this report.\n\n## Table 1: success rate and reach time\n\n";
+    let r = &p.base.reproduce;
+    let trained = p.base.sim.terrain.roughness_scale;
+    md += &format!(
+        "Ground: `roughness-scale` {trained} for stages a-d, {} for the fine-tuning (e) and {} \
+         for this evaluation (f).\n\n",
+        r.finetune_roughness_scale.unwrap_or(trained),
+        r.eval_roughness_scale.unwrap_or(trained)
+    );
+    md += "| model | area | ours: success % (episodes) | ours: reach s, mean (std) | paper: success % | paper: reach s |\n|---|---|---:|---:|---:|---:|\n";
+    for Evaluated { model, area, legs } in cells {
+        let cell = Cell::of(legs, p.base.sim.decision_dt());
+        let (ps, pr) = paper_cell(model, *area).map_or(("-".into(), "-".into()), |(s, m, sd)| {
+            (format!("{s:.1}"), format!("{m:.2} ({sd:.2})"))
+        });
+        md += &format!(
+            "| {model} | {} | {:.1} ({}) | {} | {ps} | {pr} |\n",
+            area.name(),
+            cell.success_pct(),
+            cell.episodes,
+            cell.reach()
+        );
+    }
+    for s in selections {
+        if s.candidates[s.chosen].label == GENERAL {
+            md += &format!(
+                "\n{} is the general model: no checkpoint of its fine-tuning drove {} ground better on the validation courses (stage e, below).\n",
+                s.model,
+                s.area.name()
+            );
+        }
+    }
+    md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
+    md += &selection_table(selections, r.validation_episodes);
+    let analysis = p.stage_dir("d-analysis");
+    let table3 = std::fs::read_to_string(analysis.join("results.md"))
+        .with_context(|| format!("cannot read {}", analysis.join("results.md").display()))?;
+    md += "\n## Table 3 and Figs. 5-8 (stage d)\n\n";
+    // Its own headings one level down, its figure links relative to this report.
+    let table3 = table3
+        .replace("](", "](d-analysis/")
+        .replace("\n## ", "\n### ");
+    md += table3.strip_prefix("# ").map_or(&table3[..], |t| {
+        t.split_once('\n').map_or(t, |(_, rest)| rest)
+    });
+    md += "\n## Learning curves\n\n";
+    for (stage, slot) in [
+        ("a-flat", PolicySlot::General),
+        ("b-general", PolicySlot::General),
+        ("e-specialists", PolicySlot::Flat),
+        ("e-specialists", PolicySlot::Rough),
+    ] {
+        let png = learner_dir(&p.stage_dir(stage), slot).join("curves.png");
+        if png.is_file() {
+            let rel = png.strip_prefix(&p.out).unwrap_or(&png);
+            md += &format!("![{stage} {}]({})\n\n", slot.name(), rel.display());
+        }
+    }
+    Ok(md)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::evaluation::EVAL_AREAS;
+    use super::super::legs::Legs;
+    use super::super::row_of;
+    use super::*;
+    use common::Config;
+
+    #[test]
+    fn the_seeds_report_lines_up_each_claim_across_seeds() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let legs = |ticks: u32| -> Legs { vec![vec![vec![Some(ticks); 50]]] };
+        // Seed 1's best single model on rough ground is RTM, seed 2's FTM; switching drives
+        // like RTM in both.
+        let run = |seed: u64, ftm_rough: u32| {
+            let out = dir.path().join(format!("seed-{seed}"));
+            std::fs::create_dir_all(out.join("d-analysis")).expect("mkdir");
+            std::fs::write(
+                out.join("d-analysis/results.json"),
+                r#"{"windows": [{"window": 70, "accuracy": 0.97}]}"#,
+            )
+            .expect("results");
+            let mut base = Config::default();
+            base.run.seed = seed;
+            let mut cells = Vec::new();
+            for area in EVAL_AREAS {
+                for (model, ticks) in [("general", 40), ("FTM", 40), ("RTM", 35), ("switching", 35)]
+                {
+                    let ticks = if model == "FTM" && area == AreaKind::Rough {
+                        ftm_rough
+                    } else {
+                        ticks
+                    };
+                    cells.push(Evaluated {
+                        model: model.into(),
+                        area,
+                        legs: legs(ticks),
+                    });
+                }
+            }
+            let p = Pipeline {
+                base,
+                out,
+                quiet: true,
+            };
+            (p, cells)
+        };
+        let md = seeds_report(&[run(1, 40), run(2, 34)]).expect("report");
+        let row = row_of(&md, "switching ≥ the best single model on rough");
+        // Seed 1: like RTM, 0 s; seed 2: 0.1 s behind FTM on every leg; t(1) = 12.706.
+        assert!(row.contains("| 0.0 ± 0.0 | -0.05 ± 0.64 |"), "{row}");
+        assert!(
+            row.ends_with(
+                "| seed 1: yes (switching ≥ RTM on rough); seed 2: no (switching ≥ FTM on rough) |"
+            ),
+            "{row}"
+        );
+        assert!(row_of(&md, "RTM ≥ general on rough").ends_with("| seed 1: yes; seed 2: yes |"));
+        assert!(row_of(&md, "70").contains("97.00"), "{md}");
+    }
+}

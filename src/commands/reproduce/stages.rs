@@ -1,0 +1,125 @@
+//! Per-stage bookkeeping: each stage's directory, its `stage.json` done marker, a fresh start
+//! for an unfinished one, training runs and the checkpoints they leave.
+
+use super::super::run::execute;
+use super::pipeline::Pipeline;
+use crate::runtime;
+use crate::runtime::learner_dir;
+use anyhow::Context;
+use common::Config;
+use common::config::PolicySlot;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+impl Pipeline {
+    pub(super) fn stage_dir(&self, name: &str) -> PathBuf {
+        self.out.join(name)
+    }
+
+    pub(super) fn done(&self, name: &str) -> bool {
+        self.stage_dir(name).join("stage.json").is_file()
+    }
+
+    pub(super) fn finish(&self, name: &str, what: serde_json::Value) -> anyhow::Result<()> {
+        let p = self.stage_dir(name).join("stage.json");
+        std::fs::write(&p, serde_json::to_string_pretty(&what)?)
+            .with_context(|| format!("cannot write {}", p.display()))
+    }
+
+    /// Starts stage `name` afresh (an unfinished earlier attempt is removed).
+    pub(super) fn fresh(&self, name: &str) -> anyhow::Result<PathBuf> {
+        let dir = self.stage_dir(name);
+        if dir.exists() {
+            std::fs::remove_dir_all(&dir)
+                .with_context(|| format!("cannot remove the unfinished {}", dir.display()))?;
+        }
+        Ok(dir)
+    }
+
+    /// The shared-memory run id of stage `name`: unique to this process, so two pipelines
+    /// (two `--out` directories, or a test beside a long run) never meet on one bus.
+    pub(super) fn run_id(&self, name: &str) -> String {
+        format!("{name}-{}", std::process::id())
+    }
+
+    pub(super) fn say(&self, line: &str) {
+        eprintln!("reproduce: {line}");
+    }
+
+    /// A training stage: `cfg` run as run `name` in the output directory.
+    pub(super) fn train(&self, name: &str, mut cfg: Config) -> anyhow::Result<()> {
+        if self.done(name) {
+            self.say(&format!("{name}: done before, skipped"));
+            return Ok(());
+        }
+        self.fresh(name)?;
+        cfg.run.out_dir = self.out.clone();
+        cfg.validate()?;
+        self.say(&format!(
+            "{name}: {}, {} steps, learners {:?}",
+            cfg.sim.describe_envs(),
+            cfg.run.total_steps,
+            cfg.run
+                .learners
+                .iter()
+                .map(|s| s.name())
+                .collect::<Vec<_>>()
+        ));
+        if !execute(&cfg, name, &self.run_id(name), self.quiet)? {
+            anyhow::bail!("interrupted during stage {name}; run again to resume");
+        }
+        self.finish(name, serde_json::json!({ "stage": name }))
+    }
+
+    /// Stage `name`'s checkpoints of the learner for `slot`, oldest first, each with the
+    /// update it was taken after.
+    pub(super) fn checkpoints(
+        &self,
+        name: &str,
+        slot: PolicySlot,
+    ) -> anyhow::Result<Vec<(u64, PathBuf)>> {
+        let dir = learner_dir(&self.stage_dir(name), slot).join("checkpoints");
+        let mut files: Vec<(u64, PathBuf)> = std::fs::read_dir(&dir)
+            .with_context(|| format!("cannot list {}", dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter_map(|p| {
+                let update = p
+                    .file_name()?
+                    .to_str()?
+                    .strip_prefix("checkpoint-")?
+                    .strip_suffix(".ckpt")?
+                    .parse()
+                    .ok()?;
+                Some((update, p))
+            })
+            .collect();
+        files.sort();
+        anyhow::ensure!(!files.is_empty(), "no checkpoint in {}", dir.display());
+        Ok(files)
+    }
+
+    /// The newest checkpoint of stage `name`'s learner for `slot`.
+    pub(super) fn checkpoint(&self, name: &str, slot: PolicySlot) -> anyhow::Result<PathBuf> {
+        let newest = self.checkpoints(name, slot)?.pop();
+        newest
+            .map(|(_, p)| p)
+            .with_context(|| format!("stage {name} left no checkpoint"))
+    }
+
+    /// Exports a checkpoint's actor to `out` with `learner-proc export`.
+    pub(super) fn export(&self, ckpt: &Path, out: &Path) -> anyhow::Result<()> {
+        let status = Command::new(runtime::locate("learner-proc")?)
+            .arg("export")
+            .arg(ckpt)
+            .arg("--out")
+            .arg(out)
+            .args(["--obs-clip", &self.base.ppo.obs_clip.to_string()])
+            .status()?;
+        anyhow::ensure!(
+            status.success(),
+            "learner-proc export {} failed",
+            ckpt.display()
+        );
+        Ok(())
+    }
+}
