@@ -335,9 +335,11 @@ fn the_sim_survives_learner_and_estimator_faults_swaps_and_strangers() {
     assert!(m.last_tick() > tick, "the sim stepped meanwhile");
 
     // A process with another wire version is refused at connect; the run goes on.
+    let stranger: ipc::Channel<OldTransition, RolloutHeader> =
+        ipc::Channel::new(ipc::ROLLOUT.service, ipc::ROLLOUT.capacity);
     let err = m
         .bus
-        .receiver::<OldTransition, RolloutHeader>(&ipc::ROLLOUT, None)
+        .receiver(&stranger, None)
         .err()
         .expect("refused");
     assert!(
