@@ -75,20 +75,6 @@ impl Controller for GoToController {
     }
 }
 
-/// Diagonal Gaussian log-density of `action` with mean `mean` and log-std `log_std`.
-pub fn gaussian_log_prob(action: &[f32], mean: &[f32], log_std: &[f32]) -> f32 {
-    let half_log_2pi = 0.5 * (std::f32::consts::TAU).ln();
-    action
-        .iter()
-        .zip(mean)
-        .zip(log_std)
-        .map(|((a, m), s)| {
-            let z = (a - m) / s.exp();
-            -0.5 * z * z - s - half_log_2pi
-        })
-        .sum()
-}
-
 /// A policy network: its mean action (deterministic), or a sample from its Gaussian.
 pub struct PolicyController {
     pub policy: Policy,
@@ -150,16 +136,5 @@ mod tests {
         let next = c.act(0, &obs);
         assert_ne!(next, first);
         assert!(next.iter().all(|a| a.abs() <= 3.0));
-    }
-
-    #[test]
-    fn gaussian_log_prob_matches_hand_values() {
-        // N(0, 1) at 0: −½·ln(2π) = −0.918939; two dims: −1.837877.
-        assert!(
-            (gaussian_log_prob(&[0.0, 0.0], &[0.0, 0.0], &[0.0, 0.0]) + 1.837_877).abs() < 1e-5
-        );
-        // σ = e^0.5 at z = 1: −½ − 0.5 − 0.918939.
-        let lp = gaussian_log_prob(&[1.0f32.mul_add(0.5f32.exp(), 0.0)], &[0.0], &[0.5]);
-        assert!((lp + 1.918_939).abs() < 1e-5, "{lp}");
     }
 }
