@@ -10,10 +10,12 @@ use super::say;
 use anyhow::Context;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
-use std::io::{BufRead, BufReader, Write};
+use std::io::{BufRead, BufReader, Seek, SeekFrom};
 use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, ExitStatus, Stdio};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
@@ -42,13 +44,15 @@ impl Usage {
     }
 }
 
-/// Where a child's stdout and stderr go. Both append to `<log dir>/<name>.log`, so a
-/// restarted process continues its predecessor's log.
+/// How a child's output is shown. Either way its stdout and stderr append straight to
+/// `<log dir>/<name>.log` (a restarted process continues its predecessor's log), so the log
+/// stays whole and the child never writes into a pipe that dies with the launcher.
 #[derive(Clone, Copy)]
 pub enum Output<'a> {
-    /// Copied line by line to the log and, prefixed by `[name]`, above the progress bar.
+    /// Also shown, line by line and prefixed by `[name]`, above the progress bar, by a thread
+    /// that follows the log file.
     Relay(&'a ProgressBar),
-    /// Straight into the log file: no copying thread competes with a measurement for the CPU.
+    /// Only in the log: no thread competes with a measurement for the CPU.
     File,
 }
 
@@ -57,7 +61,7 @@ pub struct Child {
     pub name: &'static str,
     child: std::process::Child,
     log: PathBuf,
-    relay: Option<JoinHandle<()>>,
+    relay: Option<Relay>,
     /// Set once the child has exited and been reaped.
     exit: Option<(ExitStatus, Usage)>,
 }
@@ -77,28 +81,30 @@ impl Child {
             .append(true)
             .open(&log)
             .with_context(|| format!("cannot open {}", log.display()))?;
-        let mut cmd = Command::new(bin);
-        cmd.args(args).stdin(Stdio::null());
-        match output {
-            Output::Relay(_) => cmd.stdout(Stdio::piped()).stderr(Stdio::piped()),
-            Output::File => {
-                let err = file
-                    .try_clone()
-                    .with_context(|| format!("cannot open {}", log.display()))?;
-                cmd.stdout(file.try_clone()?).stderr(err)
-            }
+        let start = file
+            .metadata()
+            .with_context(|| format!("cannot read {}", log.display()))?
+            .len();
+        let clone = || {
+            file.try_clone()
+                .with_context(|| format!("cannot open {}", log.display()))
         };
+        let mut cmd = Command::new(bin);
+        cmd.args(args)
+            .stdin(Stdio::null())
+            .stdout(clone()?)
+            .stderr(clone()?);
         let launcher = std::process::id();
         // SAFETY: the closure runs in the forked child before exec and calls only
         // async-signal-safe functions (prctl, getppid).
         unsafe {
             cmd.pre_exec(move || die_with_launcher(launcher));
         }
-        let mut child = cmd
+        let child = cmd
             .spawn()
             .with_context(|| format!("cannot start {}", bin.display()))?;
         let relay = match output {
-            Output::Relay(bar) => Some(relay(name, &mut child, file, bar.clone())),
+            Output::Relay(bar) => Some(Relay::follow(name, &log, start, bar.clone())?),
             Output::File => None,
         };
         Ok(Self {
@@ -146,7 +152,7 @@ impl Child {
             }
         }
         if let Some(r) = self.relay.take() {
-            let _ = r.join();
+            r.finish();
         }
     }
 
@@ -238,7 +244,7 @@ impl Drop for Child {
             let _ = self.child.wait();
         }
         if let Some(r) = self.relay.take() {
-            let _ = r.join();
+            r.finish();
         }
     }
 }
@@ -262,40 +268,56 @@ fn die_with_launcher(launcher: u32) -> std::io::Result<()> {
     Ok(())
 }
 
-/// Copies the child's stdout and stderr, line by line, to `log` and above `bar`.
-fn relay(
-    name: &'static str,
-    child: &mut std::process::Child,
-    mut log: std::fs::File,
-    bar: ProgressBar,
-) -> JoinHandle<()> {
-    let (out, err) = (child.stdout.take(), child.stderr.take());
-    std::thread::spawn(move || {
-        let (tx, rx) = std::sync::mpsc::channel::<String>();
-        let readers: Vec<_> = [
-            out.map(|o| Box::new(o) as Box<dyn std::io::Read + Send>),
-            err.map(|e| Box::new(e) as _),
-        ]
-        .into_iter()
-        .flatten()
-        .map(|r| {
-            let tx = tx.clone();
-            std::thread::spawn(move || {
-                for line in BufReader::new(r).lines().map_while(Result::ok) {
-                    if tx.send(line).is_err() {
+/// The thread that shows a child's log lines above the progress bar as they are written.
+struct Relay {
+    done: Arc<AtomicBool>,
+    thread: JoinHandle<()>,
+}
+
+impl Relay {
+    /// How often the log file is looked at for new lines.
+    const POLL: Duration = Duration::from_millis(50);
+
+    /// Follows `log` from byte `start` (where this child's output begins).
+    fn follow(
+        name: &'static str,
+        log: &Path,
+        start: u64,
+        bar: ProgressBar,
+    ) -> anyhow::Result<Self> {
+        let mut file =
+            std::fs::File::open(log).with_context(|| format!("cannot read {}", log.display()))?;
+        file.seek(SeekFrom::Start(start))
+            .with_context(|| format!("cannot read {}", log.display()))?;
+        let done = Arc::new(AtomicBool::new(false));
+        let finished = Arc::clone(&done);
+        let thread = std::thread::spawn(move || {
+            let mut reader = BufReader::new(file);
+            let mut line = String::new();
+            loop {
+                // Read `done` before draining, so the last lines written before it was set
+                // are shown.
+                let last = finished.load(Ordering::Acquire);
+                while reader.read_line(&mut line).is_ok_and(|n| n > 0) {
+                    if !line.ends_with('\n') && !last {
+                        // A line still being written: finish it on the next look.
                         break;
                     }
+                    say(&bar, format!("[{name}] {}", line.trim_end_matches('\n')));
+                    line.clear();
                 }
-            })
-        })
-        .collect();
-        drop(tx);
-        for line in rx {
-            let _ = writeln!(log, "{line}");
-            say(&bar, format!("[{name}] {line}"));
-        }
-        for r in readers {
-            let _ = r.join();
-        }
-    })
+                if last {
+                    return;
+                }
+                std::thread::sleep(Self::POLL);
+            }
+        });
+        Ok(Self { done, thread })
+    }
+
+    /// Shows what is left of the log, then stops following it.
+    fn finish(self) {
+        self.done.store(true, Ordering::Release);
+        let _ = self.thread.join();
+    }
 }
