@@ -1,7 +1,7 @@
-//! `lavatube reproduce` end to end on configs/quick.toml (issue 7): every stage runs as real
-//! processes (the switching evaluation through the full runtime with frozen FTM and RTM), the
-//! report has the paper's tables with finite numbers, and a second invocation resumes,
-//! skipping every finished stage.
+//! `lavatube reproduce` end to end on configs/quick.toml: every stage runs as real processes
+//! (the switching evaluation through the full runtime with frozen FTM and RTM), the report
+//! has the paper's tables with finite numbers, and a second invocation resumes, skipping
+//! every finished stage.
 
 mod support;
 

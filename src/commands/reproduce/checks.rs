@@ -8,6 +8,9 @@ use super::legs::{Cell, Evaluated};
 use super::statistics::Paired;
 use common::config::AreaKind;
 
+/// The heading of the claims' table, in a run's report and in the seeds report.
+pub(super) const SHAPE_CHECKS_HEADING: &str = "## Shape checks";
+
 /// The claims about Table 1, each checked leg by leg: both models drove the same seeded
 /// courses, so each claim compares them on the legs both drove (paired). A model "at least as
 /// good" reached the target on more of those legs, or on as many and sooner on average over
@@ -23,7 +26,7 @@ use common::config::AreaKind;
 pub(super) fn shape_checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> String {
     let (margin_pp, margin_s) = margins;
     let mut md = format!(
-        "\n## Shape checks (issue 7)\n\nEach claim compares the two models on the legs both drove (same seed, env and leg of the evaluation course). \"At least as good\" reads \"no\" only when the first model falls short by more than {margin_pp} pp of success or {margin_s} s of reach time beyond the noise (`reproduce.margin-pp`, `margin-s`).\n\n| claim | paired legs | success % | reach s, legs both reached | success difference, pp (95 % CI) | reach-time advantage, s (95 % CI) | holds |\n|---|---:|---:|---:|---:|---:|:---:|\n",
+        "\n{SHAPE_CHECKS_HEADING}\n\nEach claim compares the two models on the legs both drove (same seed, env and leg of the evaluation course). \"At least as good\" reads \"no\" only when the first model falls short by more than {margin_pp} pp of success or {margin_s} s of reach time beyond the noise (`reproduce.margin-pp`, `margin-s`).\n\n| claim | paired legs | success % | reach s, legs both reached | success difference, pp (95 % CI) | reach-time advantage, s (95 % CI) | holds |\n|---|---:|---:|---:|---:|---:|:---:|\n",
     );
     for Check {
         claim,

@@ -1,7 +1,7 @@
 //! The Markdown reports: one seed's `report.md` beside the paper's tables, and the report over
 //! seeds with every number as mean ± 95 % CI.
 
-use super::checks::{Check, checks, shape_checks};
+use super::checks::{Check, SHAPE_CHECKS_HEADING, checks, shape_checks};
 use super::legs::{Cell, Evaluated};
 use super::pipeline::Pipeline;
 use super::selection::{GENERAL, Selection, chosen_before};
@@ -72,7 +72,9 @@ pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
             }
         );
     }
-    md += "\n## Shape checks (issue 7)\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |\n|---|---:|---:|---|\n";
+    md += &format!(
+        "\n{SHAPE_CHECKS_HEADING}\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |\n|---|---:|---:|---|\n"
+    );
     let per_seed: Vec<(u64, Vec<Check>)> = runs
         .iter()
         .map(|(p, cells)| {
