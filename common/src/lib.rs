@@ -15,6 +15,7 @@ pub mod plot;
 pub mod policy;
 pub mod rng;
 pub mod rollout;
+pub mod run_dir;
 pub mod telemetry;
 pub mod wire;
 

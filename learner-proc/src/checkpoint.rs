@@ -5,7 +5,7 @@
 //! encoding of [`Checkpoint`]. A file is refused, naming it, when it is short, has another
 //! magic or version, a length that disagrees with the file, or a checksum that does not match.
 //!
-//! Files are `checkpoint-<update, 10 digits>.ckpt` in one directory, written atomically (temp
+//! Files are `checkpoint-<update, 10 digits>.ckpt` ([`checkpoint_file`]) in one directory, written atomically (temp
 //! file in the same directory, fsync, rename, fsync the directory) so a crash leaves either the
 //! old set or the new file, never a half-written checkpoint under a real name. After each save
 //! only the newest `keep-checkpoints` remain. Loading "the latest" walks from the newest back
@@ -17,6 +17,7 @@ use std::path::{Path, PathBuf};
 
 use common::config::Config;
 use common::policy::PolicyLayout;
+use common::run_dir::{checkpoint_file, parse_checkpoint_file};
 use common::{ACT_DIM, OBS_DIM, Rng};
 use serde::{Deserialize, Serialize};
 
@@ -29,8 +30,6 @@ const MAGIC: &[u8; 8] = b"LVTBCKPT";
 /// Bump when [`Checkpoint`] changes shape.
 pub const FORMAT_VERSION: u32 = 1;
 const HEADER_LEN: usize = 24;
-const PREFIX: &str = "checkpoint-";
-const SUFFIX: &str = ".ckpt";
 
 /// A learner's complete state.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -49,11 +48,6 @@ pub struct Checkpoint {
     pub obs_norm: RunningMeanStd,
     /// The learner's minibatch-shuffling stream.
     pub rng: Rng,
-}
-
-/// The file name of the checkpoint taken after `update` updates.
-pub fn file_name(update: u64) -> String {
-    format!("{PREFIX}{update:010}{SUFFIX}")
 }
 
 /// Header and payload of `ckpt`.
@@ -169,11 +163,7 @@ pub fn list(dir: &Path) -> Result<Vec<(u64, PathBuf)>, LearnerError> {
     for entry in entries {
         let entry = entry.map_err(LearnerError::io("listing", dir))?;
         let name = entry.file_name();
-        let update = name
-            .to_str()
-            .and_then(|n| n.strip_prefix(PREFIX))
-            .and_then(|n| n.strip_suffix(SUFFIX))
-            .and_then(|n| n.parse::<u64>().ok());
+        let update = name.to_str().and_then(parse_checkpoint_file);
         if let Some(update) = update {
             found.push((update, entry.path()));
         }
@@ -191,7 +181,7 @@ pub fn save(
     milestone_every: usize,
 ) -> Result<PathBuf, LearnerError> {
     fs::create_dir_all(dir).map_err(LearnerError::io("creating", dir))?;
-    let path = dir.join(file_name(ckpt.counters.update));
+    let path = dir.join(checkpoint_file(ckpt.counters.update));
     write_atomic(&path, &encode(ckpt)?)?;
     let all = list(dir)?;
     let milestone =
@@ -449,7 +439,7 @@ mod tests {
     #[test]
     fn damaged_files_are_refused_naming_the_file() {
         let (dir, l) = saved_dir(1, 3);
-        let path = dir.path().join(file_name(1));
+        let path = dir.path().join(checkpoint_file(1));
         let good = fs::read(&path).expect("read");
         assert_eq!(decode(&good, &path).expect("intact"), l.checkpoint());
         let refuse = |bytes: &[u8], needle: &str| {
@@ -480,13 +470,13 @@ mod tests {
     #[test]
     fn latest_good_falls_back_past_a_corrupt_newest() {
         let (dir, _) = saved_dir(3, 3);
-        let newest = dir.path().join(file_name(3));
+        let newest = dir.path().join(checkpoint_file(3));
         let bytes = fs::read(&newest).expect("read");
         fs::write(&newest, &bytes[..bytes.len() / 2]).expect("truncate");
         let (ckpt, path, skipped) = load_latest_good(dir.path()).expect("fallback");
         assert_eq!(
             (ckpt.counters.update, path),
-            (2, dir.path().join(file_name(2)))
+            (2, dir.path().join(checkpoint_file(2)))
         );
         assert_eq!(skipped.len(), 1);
         assert!(
@@ -496,7 +486,7 @@ mod tests {
         );
 
         for u in [1, 2] {
-            fs::write(dir.path().join(file_name(u)), b"junk").expect("clobber");
+            fs::write(dir.path().join(checkpoint_file(u)), b"junk").expect("clobber");
         }
         let e = load_latest_good(dir.path()).expect_err("nothing good");
         let missing = load_latest_good(&dir.path().join("not-yet"));
@@ -515,11 +505,11 @@ mod tests {
     #[test]
     fn saving_is_atomic() {
         let (dir, l) = saved_dir(1, 3);
-        let target = dir.path().join(file_name(1));
+        let target = dir.path().join(checkpoint_file(1));
         let before = fs::read(&target).expect("read");
 
         // Renaming a file over a non-empty directory fails after the temp file was written.
-        let blocked = dir.path().join(file_name(7));
+        let blocked = dir.path().join(checkpoint_file(7));
         fs::create_dir(&blocked).expect("mkdir");
         fs::write(blocked.join("x"), b"x").expect("fill");
         assert!(write_atomic(&blocked, &encode(&l.checkpoint()).expect("encode")).is_err());
@@ -528,11 +518,11 @@ mod tests {
             .expect("ls")
             .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
             .collect();
-        assert_eq!(names, vec![file_name(1)], "no temp file left behind");
+        assert_eq!(names, vec![checkpoint_file(1)], "no temp file left behind");
         assert_eq!(fs::read(&target).expect("read"), before);
 
         fs::write(
-            dir.path().join(format!(".{}.tmp-1", file_name(2))),
+            dir.path().join(format!(".{}.tmp-1", checkpoint_file(2))),
             &before[..100],
         )
         .expect("stray");
@@ -545,7 +535,7 @@ mod tests {
     #[test]
     fn warm_start_takes_weights_and_starts_counters_fresh() {
         let (dir, source) = saved_dir(2, 3);
-        let path = dir.path().join(file_name(2));
+        let path = dir.path().join(checkpoint_file(2));
         let mut cfg = small_config(128, 10);
         cfg.run.seed = 99;
         let mut l = Learner::warm_start(&cfg, &path).expect("warm start");
@@ -580,7 +570,7 @@ mod tests {
     #[test]
     fn a_warm_start_into_another_network_is_refused_naming_both() {
         let (dir, _) = saved_dir(1, 3);
-        let path = dir.path().join(file_name(1));
+        let path = dir.path().join(checkpoint_file(1));
         let mut cfg = small_config(128, 10);
         cfg.ppo.hidden = vec![32, 32];
         let e = Learner::warm_start(&cfg, &path).err().expect("mismatch");
@@ -599,7 +589,7 @@ mod tests {
         let (dir, _) = saved_dir(1, 3);
         let mut cfg = small_config(128, 10);
         cfg.ppo.hidden = vec![32, 32];
-        let e = Learner::load_checkpoint(&cfg, &dir.path().join(file_name(1)))
+        let e = Learner::load_checkpoint(&cfg, &dir.path().join(checkpoint_file(1)))
             .err()
             .expect("mismatch");
         assert!(matches!(e, LearnerError::Incompatible { .. }), "{e}");

@@ -17,6 +17,7 @@ use std::fs::File;
 use std::ops::Range;
 use std::path::Path;
 
+use common::plot::FONT;
 use plotters::backend::RGBPixel;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -26,10 +27,6 @@ use crate::checkpoint::write_atomic;
 
 /// The figure's size in pixels: a 4 × 2 grid of panels about 800 × 330 each, under a title.
 pub const SIZE: (u32, u32) = (1600, 1400);
-/// The figure `serve` keeps beside `metrics.csv`.
-pub const FILE: &str = "curves.png";
-
-use common::plot::FONT;
 const GRID: RGBColor = RGBColor(242, 242, 242);
 /// Weight of the past in the moving average (TensorBoard's smoothing slider).
 const SMOOTHING: f64 = 0.9;
@@ -381,6 +378,7 @@ fn round_significant(v: f64, digits: i32) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::run_dir::{CURVES_PNG, METRICS_CSV};
 
     const HEADER: &str = "update,global_step,policy_version,learning_rate,policy_loss,value_loss,\
         entropy,old_approx_kl,approx_kl,clip_fraction,explained_variance,grad_norm,epochs,\
@@ -426,9 +424,9 @@ mod tests {
     #[test]
     fn a_small_csv_plots_to_a_png_of_the_stated_size() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let metrics = dir.path().join("metrics.csv");
+        let metrics = dir.path().join(METRICS_CSV);
         std::fs::write(&metrics, csv((1..=6).map(row))).expect("write");
-        let out = dir.path().join("curves.png");
+        let out = dir.path().join(CURVES_PNG);
         assert_eq!(plot(&metrics, &out).expect("plot"), 6);
         let png = std::fs::read(&out).expect("read png");
         assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n", "PNG magic");
@@ -446,7 +444,7 @@ mod tests {
     #[test]
     fn empty_and_nan_values_are_skipped_in_their_panel_only() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let metrics = dir.path().join("metrics.csv");
+        let metrics = dir.path().join(METRICS_CSV);
         std::fs::write(&metrics, csv((1..=3).map(row))).expect("write");
         let curves = read(&metrics).expect("read");
         assert_eq!(curves.steps, [2048.0, 4096.0, 6144.0]);
@@ -468,7 +466,7 @@ mod tests {
     #[test]
     fn rows_after_a_resume_replace_the_ones_they_repeat() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let metrics = dir.path().join("metrics.csv");
+        let metrics = dir.path().join(METRICS_CSV);
         std::fs::write(&metrics, csv([1, 2, 3, 4, 3, 4, 5].map(row))).expect("write");
         let curves = read(&metrics).expect("read");
         assert_eq!(curves.steps, [1, 2, 3, 4, 5].map(|u| 2048.0 * f64::from(u)));
@@ -477,8 +475,8 @@ mod tests {
     #[test]
     fn a_malformed_csv_is_refused_naming_file_line_and_column() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let metrics = dir.path().join("metrics.csv");
-        let out = dir.path().join("curves.png");
+        let metrics = dir.path().join(METRICS_CSV);
+        let out = dir.path().join(CURVES_PNG);
         let refuse = |text: String, needles: &[&str]| {
             std::fs::write(&metrics, text).expect("write");
             let msg = plot(&metrics, &out).expect_err("malformed").to_string();
@@ -515,7 +513,7 @@ mod tests {
     #[test]
     fn header_only_still_draws() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let metrics = dir.path().join("metrics.csv");
+        let metrics = dir.path().join(METRICS_CSV);
         std::fs::write(&metrics, csv([])).expect("write");
         assert_eq!(plot(&metrics, &dir.path().join("c.png")).expect("plot"), 0);
     }

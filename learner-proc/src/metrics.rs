@@ -7,6 +7,7 @@
 use std::fs::{File, OpenOptions};
 use std::path::{Path, PathBuf};
 
+use common::run_dir::METRICS_CSV;
 use serde::{Deserialize, Serialize};
 
 use crate::LearnerError;
@@ -92,10 +93,8 @@ pub struct MetricsLog {
 }
 
 impl MetricsLog {
-    pub const FILE: &'static str = "metrics.csv";
-
     pub fn open(run_dir: &Path) -> Result<Self, LearnerError> {
-        let path = run_dir.join(Self::FILE);
+        let path = run_dir.join(METRICS_CSV);
         let file = OpenOptions::new()
             .create(true)
             .append(true)

@@ -12,6 +12,7 @@
 use crate::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout, curves};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
+use common::run_dir;
 use common::wire::{PolicyHeader, RolloutHeader};
 use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout, Transition};
 use std::path::{Path, PathBuf};
@@ -203,7 +204,7 @@ impl CurvesFigure {
 
     fn new(out: &Path) -> Self {
         Self {
-            png: out.join(curves::FILE),
+            png: out.join(run_dir::CURVES_PNG),
             drawn: None,
         }
     }
@@ -226,7 +227,7 @@ impl CurvesFigure {
 
 pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     let cfg = Config::load(&args.join.config)?;
-    let ckpt_dir = args.out.join("checkpoints");
+    let ckpt_dir = args.out.join(run_dir::CHECKPOINTS);
     std::fs::create_dir_all(&ckpt_dir).map_err(LearnerError::io("create", &ckpt_dir))?;
     let (mut learner, from) = start(&cfg, args, &ckpt_dir)?;
     if args.check {
@@ -385,7 +386,7 @@ mod tests {
     #[test]
     fn curves_are_redrawn_at_most_every_interval_and_at_the_end() {
         let dir = tempfile::tempdir().expect("tempdir");
-        let metrics = dir.path().join(MetricsLog::FILE);
+        let metrics = dir.path().join(run_dir::METRICS_CSV);
         std::fs::write(&metrics, "global_step,mean_episode_return,success_rate,policy_loss,value_loss,entropy,approx_kl,clip_fraction,explained_variance\n")
             .expect("write");
         let mut figure = CurvesFigure::new(dir.path());
@@ -416,7 +417,7 @@ mod tests {
         source.update(&r.view()).expect("update");
         let source_path = source.save_checkpoint(source_dir.path()).expect("save");
         let run = tempfile::tempdir().expect("tempdir");
-        let ckpt_dir = run.path().join("checkpoints");
+        let ckpt_dir = run.path().join(run_dir::CHECKPOINTS);
         let path = source_path.to_str().expect("utf-8 temp path");
         let args = serve_args(&["--init-from", path]).expect("args");
 

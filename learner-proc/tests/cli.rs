@@ -87,7 +87,7 @@ fn plot_draws_a_png_and_names_a_bad_value() {
         log.append(&learner.update(&rollout).expect("update"))
             .expect("append");
     }
-    let png = dir.path().join("curves.png");
+    let png = dir.path().join(common::run_dir::CURVES_PNG);
     let out = learner_proc(&[
         "plot".as_ref(),
         "--metrics".as_ref(),
