@@ -8,6 +8,7 @@
 
 pub mod actor;
 pub mod batch;
+pub mod cli;
 pub mod controllers;
 pub mod env;
 mod pool;
@@ -16,11 +17,12 @@ pub mod serve;
 pub mod standalone;
 pub mod switching;
 pub mod task;
+pub mod telemetry_csv;
 pub mod terrain;
 
 pub use batch::Batch;
+pub use cli::{Args, run};
 pub use env::{Env, SharedTerrain, StepInfo};
-pub use standalone::{Args, run};
 
 use std::path::PathBuf;
 
