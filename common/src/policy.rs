@@ -59,7 +59,7 @@ pub struct PolicyLayout {
 
 /// Where one dense layer's parameters sit in the flat vector.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct DenseSlot {
+pub struct DenseLayer {
     pub inputs: usize,
     pub outputs: usize,
     /// Offset of the `[inputs][outputs]` weight block.
@@ -87,12 +87,12 @@ impl PolicyLayout {
     }
 
     /// The dense layers in evaluation order, the mean head last.
-    pub fn dense_layers(&self) -> Vec<DenseSlot> {
+    pub fn dense_layers(&self) -> Vec<DenseLayer> {
         let mut at = 2 * self.obs_dim;
         let mut inputs = self.obs_dim;
-        let mut slots = Vec::with_capacity(self.hidden.len() + 1);
+        let mut layers = Vec::with_capacity(self.hidden.len() + 1);
         for &outputs in self.hidden.iter().chain(std::iter::once(&self.act_dim)) {
-            slots.push(DenseSlot {
+            layers.push(DenseLayer {
                 inputs,
                 outputs,
                 weight: at,
@@ -101,7 +101,7 @@ impl PolicyLayout {
             at += inputs * outputs + outputs;
             inputs = outputs;
         }
-        slots
+        layers
     }
 
     pub fn log_std(&self) -> usize {
@@ -137,7 +137,7 @@ impl PolicyLayout {
 #[derive(Debug, Clone)]
 pub struct Policy {
     layout: PolicyLayout,
-    layers: Vec<DenseSlot>,
+    layers: Vec<DenseLayer>,
     weights: Vec<f32>,
     obs_clip: f32,
     a: Vec<f32>,
@@ -358,7 +358,7 @@ mod tests {
         // obs stats 4, layer 2x3+3 = 9, head 3x1+1 = 4, log_std 1.
         assert_eq!(
             d[0],
-            DenseSlot {
+            DenseLayer {
                 inputs: 2,
                 outputs: 3,
                 weight: 4,
@@ -367,7 +367,7 @@ mod tests {
         );
         assert_eq!(
             d[1],
-            DenseSlot {
+            DenseLayer {
                 inputs: 3,
                 outputs: 1,
                 weight: 13,

@@ -35,14 +35,14 @@ pub enum Role {
 /// One parameter tensor's place in the flat vector: a `[rows, cols]` block at `offset`
 /// (biases and the log-std are `[1, n]` rows).
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Slot {
+pub struct ParamBlock {
     pub offset: usize,
     pub rows: usize,
     pub cols: usize,
     pub role: Role,
 }
 
-impl Slot {
+impl ParamBlock {
     pub fn range(&self) -> std::ops::Range<usize> {
         self.offset..self.offset + self.rows * self.cols
     }
@@ -52,18 +52,18 @@ impl Slot {
 #[derive(Debug, Clone, PartialEq)]
 pub struct NetShape {
     pub layout: PolicyLayout,
-    /// Weight and bias slots of each dense layer, actor first, then the log-std, then the critic.
-    pub slots: Vec<Slot>,
+    /// Weight and bias blocks of each dense layer, actor first, then the log-std, then the critic.
+    pub blocks: Vec<ParamBlock>,
 }
 
 impl NetShape {
     /// The actor follows `layout`; the critic has the same hidden widths and one output.
     /// Orthogonal-init gains are CleanRL's: √2 hidden, 0.01 policy head, 1 value head.
     pub fn new(layout: &PolicyLayout) -> Self {
-        let mut slots = Vec::new();
+        let mut blocks = Vec::new();
         let mut at = 0;
         let mut push = |rows: usize, cols: usize, role: Role| {
-            slots.push(Slot {
+            blocks.push(ParamBlock {
                 offset: at,
                 rows,
                 cols,
@@ -89,18 +89,18 @@ impl NetShape {
         }
         Self {
             layout: layout.clone(),
-            slots,
+            blocks,
         }
     }
 
-    /// Index of the log-std slot; actor dense slots come before it, critic slots after.
-    pub fn log_std_slot(&self) -> usize {
+    /// Index of the log-std block; actor dense blocks come before it, critic blocks after.
+    pub fn log_std_block(&self) -> usize {
         2 * (self.layout.hidden.len() + 1)
     }
 
     /// Floats in the flat parameter vector.
     pub fn len(&self) -> usize {
-        self.slots.last().map_or(0, |s| s.range().end)
+        self.blocks.last().map_or(0, |s| s.range().end)
     }
 
     pub fn is_empty(&self) -> bool {
@@ -109,33 +109,33 @@ impl NetShape {
 
     /// Floats of the actor (dense layers and log-std): the policy vector minus its obs stats.
     pub fn actor_len(&self) -> usize {
-        self.slots[self.log_std_slot()].range().end
+        self.blocks[self.log_std_block()].range().end
     }
 
     /// Initial parameters: orthogonal weights with zero biases (SPEC S6 option, CleanRL), or
     /// PyTorch's default `U(±1/√fan_in)` for both; the log-std starts at `init_log_std`.
     pub fn init(&self, orthogonal_init: bool, init_log_std: f32, rng: &mut Rng) -> Vec<f32> {
         let mut params = vec![0.0f32; self.len()];
-        for slot in &self.slots {
-            let out = &mut params[slot.range()];
-            match (slot.role, orthogonal_init) {
+        for block in &self.blocks {
+            let out = &mut params[block.range()];
+            match (block.role, orthogonal_init) {
                 (Role::LogStd, _) => out.fill(init_log_std),
                 (Role::Weight { gain }, true) => {
-                    out.copy_from_slice(&orthogonal(slot.rows, slot.cols, gain, rng))
+                    out.copy_from_slice(&orthogonal(block.rows, block.cols, gain, rng))
                 }
                 (Role::Bias { .. }, true) => out.fill(0.0),
-                (Role::Weight { .. }, false) => uniform_fan_in(out, slot.rows, rng),
+                (Role::Weight { .. }, false) => uniform_fan_in(out, block.rows, rng),
                 (Role::Bias { fan_in }, false) => uniform_fan_in(out, fan_in, rng),
             }
         }
         params
     }
 
-    /// The (weight, bias) slot pairs of the actor's dense layers, or the critic's.
-    fn dense(&self, critic: bool) -> impl Iterator<Item = (Slot, Slot)> + '_ {
-        let at = if critic { self.log_std_slot() + 1 } else { 0 };
+    /// The (weight, bias) block pairs of the actor's dense layers, or the critic's.
+    fn dense(&self, critic: bool) -> impl Iterator<Item = (ParamBlock, ParamBlock)> + '_ {
+        let at = if critic { self.log_std_block() + 1 } else { 0 };
         let n = self.layout.hidden.len() + 1;
-        (0..n).map(move |l| (self.slots[at + 2 * l], self.slots[at + 2 * l + 1]))
+        (0..n).map(move |l| (self.blocks[at + 2 * l], self.blocks[at + 2 * l + 1]))
     }
 
     /// The tensors of both networks built from `params` on `device`; gradient-tracked leaves
@@ -170,7 +170,7 @@ impl NetShape {
                 })
                 .collect()
         };
-        let log_std = self.slots[self.log_std_slot()];
+        let log_std = self.blocks[self.log_std_block()];
         NetTensors {
             actor: network(false),
             log_std: leaf(params[log_std.range()].to_vec(), [1, log_std.cols]),
@@ -178,7 +178,7 @@ impl NetShape {
         }
     }
 
-    /// Copies each tracked leaf's gradient back into the slots of `out` (zero where none
+    /// Copies each tracked leaf's gradient back into the blocks of `out` (zero where none
     /// flowed); the constant bias-unit columns have no parameters and are dropped.
     pub fn gradients(
         &self,
@@ -207,7 +207,7 @@ impl NetShape {
                 out[dst..dst + w.cols].copy_from_slice(&row[..w.cols]);
             }
         }
-        let dst = &mut out[self.slots[self.log_std_slot()].range()];
+        let dst = &mut out[self.blocks[self.log_std_block()].range()];
         match tensors.log_std.grad(grads) {
             Some(g) => dst.copy_from_slice(&read(g, "gradient")?),
             None => dst.fill(0.0),
@@ -367,23 +367,23 @@ mod tests {
     use super::*;
 
     #[test]
-    fn slots_follow_the_policy_layout() {
+    fn blocks_follow_the_policy_layout() {
         let layout = PolicyLayout::new(10, &[128, 128], 2);
         let shape = NetShape::new(&layout);
         let d = layout.dense_layers();
         let stats = 2 * layout.obs_dim;
         for (l, dense) in d.iter().enumerate() {
-            assert_eq!(shape.slots[2 * l].offset + stats, dense.weight);
-            assert_eq!(shape.slots[2 * l + 1].offset + stats, dense.bias);
+            assert_eq!(shape.blocks[2 * l].offset + stats, dense.weight);
+            assert_eq!(shape.blocks[2 * l + 1].offset + stats, dense.bias);
         }
         assert_eq!(
-            shape.slots[shape.log_std_slot()].offset + stats,
+            shape.blocks[shape.log_std_block()].offset + stats,
             layout.log_std()
         );
         assert_eq!(shape.actor_len() + stats, layout.len());
         let critic = (10 * 128 + 128) + (128 * 128 + 128) + (128 + 1);
         assert_eq!(shape.len(), shape.actor_len() + critic);
-        assert_eq!(shape.slots.len(), 13);
+        assert_eq!(shape.blocks.len(), 13);
     }
 
     #[test]
@@ -413,7 +413,7 @@ mod tests {
         let layout = PolicyLayout::new(10, &[64, 64], 2);
         let shape = NetShape::new(&layout);
         let p = shape.init(true, -0.5, &mut Rng::new(1));
-        let norm = |s: Slot| {
+        let norm = |s: ParamBlock| {
             p[s.range()]
                 .iter()
                 .map(|x| f64::from(*x).powi(2))
@@ -421,23 +421,23 @@ mod tests {
                 .sqrt()
         };
         // Frobenius norm of an orthogonal block = gain · sqrt(short side).
-        assert!((norm(shape.slots[0]) - 2f64.sqrt() * 10f64.sqrt()).abs() < 1e-4);
+        assert!((norm(shape.blocks[0]) - 2f64.sqrt() * 10f64.sqrt()).abs() < 1e-4);
         assert!(
-            (norm(shape.slots[4]) - 0.01 * 2f64.sqrt()).abs() < 1e-6,
+            (norm(shape.blocks[4]) - 0.01 * 2f64.sqrt()).abs() < 1e-6,
             "policy head"
         );
-        let critic_head = shape.slots[shape.slots.len() - 2];
+        let critic_head = shape.blocks[shape.blocks.len() - 2];
         assert!((norm(critic_head) - 1.0).abs() < 1e-5, "value head");
-        assert!(p[shape.slots[1].range()].iter().all(|&b| b == 0.0));
-        assert!(p[shape.slots[6].range()].iter().all(|&x| x == -0.5));
+        assert!(p[shape.blocks[1].range()].iter().all(|&b| b == 0.0));
+        assert!(p[shape.blocks[6].range()].iter().all(|&x| x == -0.5));
         let plain = shape.init(false, 0.0, &mut Rng::new(1));
         let bound = 1.0 / 64f32.sqrt();
         assert!(
-            plain[shape.slots[3].range()]
+            plain[shape.blocks[3].range()]
                 .iter()
                 .all(|b| b.abs() <= bound)
         );
-        assert!(plain[shape.slots[3].range()].iter().any(|&b| b != 0.0));
+        assert!(plain[shape.blocks[3].range()].iter().any(|&b| b != 0.0));
     }
 
     #[test]
@@ -483,7 +483,7 @@ mod tests {
 
     /// Folding biases into the weight matrices and back loses nothing.
     #[test]
-    fn gradients_land_in_their_slots() {
+    fn gradients_land_in_their_blocks() {
         let layout = PolicyLayout::new(3, &[4], 2);
         let shape = NetShape::new(&layout);
         let params: Vec<f32> = (0..shape.len()).map(|i| i as f32).collect();

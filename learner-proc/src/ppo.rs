@@ -278,7 +278,7 @@ impl Learner {
         obs: &[[f32; OBS_DIM]],
         rng: &mut Rng,
     ) -> Result<Vec<SampledAction>, LearnerError> {
-        let log_std = &self.params[self.shape.slots[self.shape.log_std_slot()].range()];
+        let log_std = &self.params[self.shape.blocks[self.shape.log_std_block()].range()];
         let means = self.mean_actions(obs)?;
         Ok(means
             .into_iter()
@@ -737,9 +737,9 @@ pub(crate) mod tests {
         cfg.ppo.obs_clip = 3.0;
         let mut learner = learner(&cfg, 1);
         let mut rng = Rng::new(2);
-        for slot in &learner.shape.slots {
-            let scale = 1.5 / (slot.rows as f64).sqrt();
-            learner.params[slot.range()]
+        for block in &learner.shape.blocks {
+            let scale = 1.5 / (block.rows as f64).sqrt();
+            learner.params[block.range()]
                 .iter_mut()
                 .for_each(|p| *p = (scale * rng.normal()) as f32);
         }
@@ -775,11 +775,11 @@ pub(crate) mod tests {
         );
         assert_eq!(
             policy.log_std(),
-            &learner.params[learner.shape.slots[learner.shape.log_std_slot()].range()]
+            &learner.params[learner.shape.blocks[learner.shape.log_std_block()].range()]
         );
     }
 
-    /// The flat vector is obs mean, obs var, then the actor's slots exactly as the learner holds them.
+    /// The flat vector is obs mean, obs var, then the actor's blocks exactly as the learner holds them.
     #[test]
     fn policy_weights_round_trip_through_the_layout() {
         let mut learner = learner(&Config::default(), 3);
@@ -795,7 +795,7 @@ pub(crate) mod tests {
         assert_eq!(&w[layout.obs_mean()..layout.obs_var()], mean.as_slice());
         assert_eq!(&w[layout.obs_var()..2 * OBS_DIM], var.as_slice());
         for (l, dense) in layout.dense_layers().iter().enumerate() {
-            let (ws, bs) = (learner.shape.slots[2 * l], learner.shape.slots[2 * l + 1]);
+            let (ws, bs) = (learner.shape.blocks[2 * l], learner.shape.blocks[2 * l + 1]);
             assert_eq!(&w[dense.weight..dense.bias], &learner.params[ws.range()]);
             assert_eq!(
                 &w[dense.bias..dense.bias + dense.outputs],
@@ -804,7 +804,7 @@ pub(crate) mod tests {
         }
         assert_eq!(
             &w[layout.log_std()..],
-            &learner.params[learner.shape.slots[learner.shape.log_std_slot()].range()]
+            &learner.params[learner.shape.blocks[learner.shape.log_std_block()].range()]
         );
     }
 
