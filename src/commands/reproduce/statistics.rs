@@ -2,20 +2,28 @@
 
 use super::legs::{Legs, common_legs};
 
-/// Mean and half-width of the 95 % confidence interval of the mean (Student's t).
+/// Mean and half-width of the 95 % confidence interval of the mean, with [`t975`].
 pub(super) fn mean_ci(xs: &[f64]) -> (f64, f64) {
-    const T975: [f64; 19] = [
-        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
-        2.145, 2.131, 2.120, 2.110, 2.101, 2.093,
-    ];
     let n = xs.len();
     let mean = xs.iter().sum::<f64>() / n.max(1) as f64;
     if n < 2 {
         return (mean, f64::NAN);
     }
     let sd = (xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt();
-    let t = T975.get(n - 2).copied().unwrap_or(1.96);
-    (mean, t * sd / (n as f64).sqrt())
+    (mean, t975(n - 1) * sd / (n as f64).sqrt())
+}
+
+/// The two-sided 95 % quantile for `df` degrees of freedom: Student's t to three decimals
+/// up to 19, the normal quantile 1.96 beyond.
+fn t975(df: usize) -> f64 {
+    const T975: [f64; 19] = [
+        12.706, 4.303, 3.182, 2.776, 2.571, 2.447, 2.365, 2.306, 2.262, 2.228, 2.201, 2.179, 2.160,
+        2.145, 2.131, 2.120, 2.110, 2.101, 2.093,
+    ];
+    df.checked_sub(1)
+        .and_then(|i| T975.get(i))
+        .copied()
+        .unwrap_or(1.96)
 }
 
 /// Two models `x` and `y` compared on the legs both drove (same part, env and leg index).
@@ -77,6 +85,16 @@ mod tests {
         assert_eq!(m, 2.0);
         assert!((h - 4.303 / 3f64.sqrt()).abs() < 1e-12);
         assert!(mean_ci(&[5.0]).1.is_nan());
+    }
+
+    #[test]
+    fn the_quantile_is_students_t_up_to_19_degrees_of_freedom_then_the_normal() {
+        for (df, t) in [(1, 12.706), (2, 4.303), (10, 2.228), (19, 2.093)] {
+            assert_eq!(t975(df), t, "df {df}");
+        }
+        for df in [20, 30, 1000] {
+            assert_eq!(t975(df), 1.96, "df {df}");
+        }
     }
 
     #[test]
