@@ -5,7 +5,8 @@
 
 use crate::commands::UserError;
 use common::Config;
-use common::config::{ConfigError, LearnMode};
+use common::config::range::{count_in, count_list};
+use common::config::{ConfigError, LearnMode, read_toml};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 
@@ -162,75 +163,20 @@ pub struct Plan {
     pub quick: bool,
 }
 
-fn invalid(field: &'static str, value: impl std::fmt::Debug, reason: &str) -> ConfigError {
-    ConfigError::Invalid {
-        field,
-        value: format!("{value:?}"),
-        reason: reason.into(),
-    }
-}
-
-/// 1-based line and column of a byte offset, for parse errors.
-fn line_col(text: &str, offset: usize) -> (usize, usize) {
-    let before = &text[..offset.min(text.len())];
-    let line = before.matches('\n').count() + 1;
-    let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-    (line, column)
-}
-
-/// Checks a list of counts: non-empty, each in `lo ..= hi`, no repeats.
-fn check_list(field: &'static str, v: &[usize], lo: usize, hi: usize) -> Result<(), ConfigError> {
-    if v.is_empty() {
-        return Err(invalid(field, v, "needs at least one value"));
-    }
-    if let Some(bad) = v.iter().find(|x| !(lo..=hi).contains(*x)) {
-        return Err(invalid(field, v, &format!("{bad} is not in [{lo}, {hi}]")));
-    }
-    let mut sorted = v.to_vec();
-    sorted.sort_unstable();
-    sorted.dedup();
-    if sorted.len() != v.len() {
-        return Err(invalid(field, v, "lists a value twice"));
-    }
-    Ok(())
-}
-
 impl BenchConfig {
     fn validate(&self) -> Result<(), ConfigError> {
-        check_list("bench.envs", &self.envs, 1, 1024)?;
-        check_list("bench.threads", &self.threads, 1, 64)?;
-        if !(1..=1_000_000_000).contains(&self.env_steps) {
-            return Err(invalid(
-                "bench.env-steps",
-                self.env_steps,
-                "must be in [1, 1000000000]",
-            ));
-        }
-        if !(2..=1_000_000).contains(&self.min_chunks) {
-            return Err(invalid(
-                "bench.min-chunks",
-                self.min_chunks,
-                "must be in [2, 1000000]",
-            ));
-        }
-        if !(1..=20).contains(&self.repeats) {
-            return Err(invalid("bench.repeats", self.repeats, "must be in [1, 20]"));
-        }
-        if !(100..=10_000_000).contains(&self.transport_messages) {
-            return Err(invalid(
-                "bench.transport-messages",
-                self.transport_messages,
-                "must be in [100, 10000000]",
-            ));
-        }
-        if !(10..=86_400).contains(&self.timeout_s) {
-            return Err(invalid(
-                "bench.timeout-s",
-                self.timeout_s,
-                "must be in [10, 86400]",
-            ));
-        }
-        Ok(())
+        count_list("bench.envs", &self.envs, 1, 1024)?;
+        count_list("bench.threads", &self.threads, 1, 64)?;
+        count_in("bench.env-steps", self.env_steps, 1, 1_000_000_000)?;
+        count_in("bench.min-chunks", self.min_chunks, 2, 1_000_000)?;
+        count_in("bench.repeats", self.repeats, 1, 20)?;
+        count_in(
+            "bench.transport-messages",
+            self.transport_messages,
+            100,
+            10_000_000,
+        )?;
+        count_in("bench.timeout-s", self.timeout_s, 10, 86_400)
     }
 }
 
@@ -241,21 +187,7 @@ impl Plan {
     pub fn load(path: Option<&Path>, quick: bool) -> anyhow::Result<Self> {
         let bench = match path {
             Some(p) => {
-                let text = std::fs::read_to_string(p).map_err(|e| ConfigError::Read {
-                    path: p.to_path_buf(),
-                    reason: e.to_string(),
-                })?;
-                let file: BenchFile = toml::from_str(&text).map_err(|e| {
-                    let (line, column) =
-                        e.span().map(|s| line_col(&text, s.start)).unwrap_or((1, 1));
-                    ConfigError::Parse {
-                        path: p.to_path_buf(),
-                        line,
-                        column,
-                        message: e.message().replace('\n', " "),
-                    }
-                })?;
-                let mut bench = file.bench;
+                let mut bench = read_toml::<BenchFile>(p)?.bench;
                 // Relative to the bench file, as heightmap paths are to their config.
                 if let (Some(r), Some(dir)) = (bench.runtime.as_mut(), p.parent()) {
                     *r = dir.join(&*r);
