@@ -5,11 +5,11 @@
 use common::config::PolicySlot;
 use common::{ACT_DIM, Config, OBS_DIM, Policy, PolicyLayout};
 use learner_proc::{Learner, Rollout};
-use sim_proc::actor::Actor;
 use sim_proc::controllers::PolicyController;
-use sim_proc::switching::PolicyPool;
+use sim_proc::driver::Driver;
+use sim_proc::switching::PolicySet;
 use sim_proc::terrain::Terrain;
-use sim_proc::{Batch, SharedTerrain};
+use sim_proc::{Fleet, SharedTerrain};
 
 mod support;
 
@@ -18,12 +18,12 @@ fn train_in_process(cfg: &Config) -> Learner {
     let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
     let mut learner = Learner::new(cfg, layout.clone(), cfg.run.seed).expect("learner");
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain).expect("terrain"));
-    let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
+    let mut batch = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
     let policy =
         Policy::new(layout, learner.policy_weights(), cfg.ppo.obs_clip as f32).expect("policy");
     let ctrl = PolicyController::new(policy, true, cfg.run.seed);
-    let mut pool = PolicyPool::new(PolicySlot::General, ctrl, learner.policy_version());
-    let mut actor = Actor::new(&batch);
+    let mut pool = PolicySet::new(PolicySlot::General, ctrl, learner.policy_version());
+    let mut actor = Driver::new(&batch);
     let (n, t) = (batch.len(), cfg.ppo.rollout_steps(batch.len()));
     let wanted = vec![PolicySlot::General; n];
     let mut chunk = Vec::new();

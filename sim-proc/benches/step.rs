@@ -12,7 +12,7 @@ use common::config::SimConfig;
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use sim_proc::controllers::{Controller, GoToController};
 use sim_proc::terrain::Terrain;
-use sim_proc::{Batch, SharedTerrain, StepInfo};
+use sim_proc::{Fleet, SharedTerrain, StepInfo};
 use std::io::Write;
 use std::time::{Duration, Instant};
 
@@ -41,12 +41,12 @@ fn decision_steps(c: &mut Criterion) {
                 ..SimConfig::default()
             };
             let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-            let mut batch = Batch::new(&cfg, &terrain, 1);
+            let mut fleet = Fleet::new(&cfg, &terrain, 1);
             let mut ctrl = GoToController::new(cfg.robot.action_limit);
             let mut obs = vec![[0.0f32; common::OBS_DIM]; envs];
             let mut actions = vec![[0.0f32; 2]; envs];
             let mut infos = vec![StepInfo::default(); envs];
-            batch.observe(&mut obs);
+            fleet.observe(&mut obs);
             let mut row = Row {
                 envs,
                 threads,
@@ -62,7 +62,7 @@ fn decision_steps(c: &mut Criterion) {
                         for (i, a) in actions.iter_mut().enumerate() {
                             *a = ctrl.act(i, &obs[i]);
                         }
-                        batch.step(&actions, &mut infos, &mut obs);
+                        fleet.step(&actions, &mut infos, &mut obs);
                     }
                     let elapsed = wall.elapsed();
                     row.steps += iters * envs as u64;

@@ -8,7 +8,7 @@ use common::config::SimConfig;
 use sim_proc::controllers::GoToController;
 use sim_proc::standalone::drive;
 use sim_proc::terrain::Terrain;
-use sim_proc::{Batch, SharedTerrain};
+use sim_proc::{Fleet, SharedTerrain};
 
 fn rolling_std_mean(series: &[Vec<f64>], w: usize, warmup: usize) -> f64 {
     let (mut sum, mut n) = (0.0, 0usize);
@@ -46,10 +46,10 @@ fn main() -> anyhow::Result<()> {
             ..cfg.sim.clone()
         };
         let terrain = SharedTerrain::new(Terrain::build(&sim.terrain)?);
-        let mut batch = Batch::new(&sim, &terrain, cfg.run.seed);
+        let mut fleet = Fleet::new(&sim, &terrain, cfg.run.seed);
         let mut ctrl = GoToController::new(sim.robot.action_limit);
-        let mut series = vec![Vec::new(); batch.len()];
-        let summary = drive(&mut batch, &mut ctrl, ticks, |row| {
+        let mut series = vec![Vec::new(); fleet.len()];
+        let summary = drive(&mut fleet, &mut ctrl, ticks, |row| {
             series[row.env as usize].push(row.sin_pitch);
             Ok(())
         })?;

@@ -2,9 +2,9 @@
 //! chunk as [`Transition`]s. Shared by `serve` and by in-process training loops, so both
 //! produce the same transitions from the same seed.
 
-use crate::Batch;
+use crate::Fleet;
 use crate::env::StepInfo;
-use crate::switching::PolicyPool;
+use crate::switching::PolicySet;
 use crate::task::Ending;
 use common::config::PolicySlot;
 use common::episode::EpisodeStats;
@@ -12,7 +12,7 @@ use common::wire::{self, EnvTick};
 use common::{ACT_DIM, OBS_DIM, Transition};
 
 /// Per-env buffers of the acting loop.
-pub struct Actor {
+pub struct Driver {
     /// Each env's current observation.
     pub obs: Vec<[f32; OBS_DIM]>,
     next_obs: Vec<[f32; OBS_DIM]>,
@@ -26,11 +26,11 @@ pub struct Actor {
     pub episodes: EpisodeStats,
 }
 
-impl Actor {
-    pub fn new(batch: &Batch) -> Self {
-        let n = batch.len();
+impl Driver {
+    pub fn new(fleet: &Fleet) -> Self {
+        let n = fleet.len();
         let mut obs = vec![[0.0f32; OBS_DIM]; n];
-        batch.observe(&mut obs);
+        fleet.observe(&mut obs);
         Self {
             next_obs: obs.clone(),
             obs,
@@ -42,24 +42,24 @@ impl Actor {
         }
     }
 
-    /// Samples every env's action from the pool (env `i` asks for slot `wanted[i]`), steps
-    /// the batch and appends one transition per env to `chunk`. `classes` holds the
+    /// Samples every env's action from `policies` (env `i` asks for slot `wanted[i]`), steps
+    /// the fleet and appends one transition per env to `chunk`. `classes` holds the
     /// estimator's current class per env.
     pub fn tick(
         &mut self,
-        batch: &mut Batch,
-        pool: &mut PolicyPool,
+        fleet: &mut Fleet,
+        policies: &mut PolicySet,
         wanted: &[PolicySlot],
         classes: &[u8],
         chunk: &mut Vec<Transition>,
     ) {
         for (i, o) in self.obs.iter().enumerate() {
             let w = wanted.get(i).copied().unwrap_or(PolicySlot::General);
-            let (slot, version, action, logprob) = pool.sample(w, o);
+            let (slot, version, action, logprob) = policies.sample(w, o);
             (self.actions[i], self.logprobs[i], self.acted[i]) = (action, logprob, (slot, version));
         }
-        batch.step(&self.actions, &mut self.infos, &mut self.next_obs);
-        for (i, env) in batch.envs.iter().enumerate() {
+        fleet.step(&self.actions, &mut self.infos, &mut self.next_obs);
+        for (i, env) in fleet.envs.iter().enumerate() {
             let info = &self.infos[i];
             let end = info.ending;
             if let Some(e) = end {
@@ -96,10 +96,10 @@ impl Actor {
     }
 
     /// The telemetry of the last step, one entry per env.
-    pub fn env_ticks(&self, batch: &Batch, out: &mut [EnvTick]) {
+    pub fn env_ticks(&self, fleet: &Fleet, out: &mut [EnvTick]) {
         for (((t, env), info), acted) in out
             .iter_mut()
-            .zip(&batch.envs)
+            .zip(&fleet.envs)
             .zip(&self.infos)
             .zip(&self.acted)
         {

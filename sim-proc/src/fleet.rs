@@ -8,12 +8,12 @@ use common::{ACT_DIM, OBS_DIM};
 use std::sync::{Mutex, PoisonError};
 
 /// All envs of a run.
-pub struct Batch {
+pub struct Fleet {
     pub envs: Vec<Env>,
     pool: Pool,
 }
 
-impl Batch {
+impl Fleet {
     pub fn new(cfg: &SimConfig, terrain: &SharedTerrain, seed: u64) -> Self {
         let envs: Vec<Env> = (0..cfg.num_envs())
             .map(|i| Env::new(i, cfg, terrain, seed))
@@ -39,7 +39,7 @@ impl Batch {
     /// Steps every env with its action, writing each env's step info and next observation.
     /// The threads take the envs one at a time, in order, so a thread the scheduler holds
     /// back (a reader or the learner on the same core) delays one env, not its share of the
-    /// batch.
+    /// fleet.
     pub fn step(
         &mut self,
         actions: &[[f32; ACT_DIM]],

@@ -6,11 +6,11 @@
 //! a non-finite physics state ends that env's episode (truncated) and respawns it, it never
 //! stops the process.
 
-pub mod actor;
-pub mod batch;
 pub mod cli;
 pub mod controllers;
+pub mod driver;
 pub mod env;
+pub mod fleet;
 mod pool;
 pub mod robot;
 pub mod serve;
@@ -20,9 +20,9 @@ pub mod task;
 pub mod telemetry_csv;
 pub mod terrain;
 
-pub use batch::Batch;
 pub use cli::{Args, run};
 pub use env::{Env, SharedTerrain, StepInfo};
+pub use fleet::Fleet;
 
 use std::path::PathBuf;
 

@@ -1,4 +1,4 @@
-//! A fixed set of worker threads, created once and woken for every batch step.
+//! A fixed set of worker threads, created once and woken for every fleet step.
 //!
 //! Spawning the threads anew each decision step cost a third of the CPU time at 2 envs on
 //! 2 threads (3,600 against 5,300 decision steps per CPU-second here) and a sixth at 8 envs.
@@ -17,7 +17,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 /// How long a thread spins on a round's start or end before it sleeps: longer than the gap
-/// between two batch steps (the controller acting), far shorter than a wait on the learner.
+/// between two fleet steps (the controller acting), far shorter than a wait on the learner.
 const SPIN: Duration = Duration::from_micros(50);
 
 /// The job of the current round. `'static` only in name: [`Pool::run`] does not return while

@@ -4,11 +4,11 @@
 //! a rollout chunk on `rollout`. In sync mode it waits after each chunk for the policies
 //! learned from it (DESIGN §3); in async mode it never waits.
 
-use crate::Batch;
-use crate::actor::Actor;
+use crate::Fleet;
 use crate::controllers::PolicyController;
+use crate::driver::Driver;
 use crate::env::SharedTerrain;
-use crate::switching::{PolicyPool, Switcher};
+use crate::switching::{PolicySet, Switcher};
 use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::terrain::Terrain;
 use anyhow::Context;
@@ -57,7 +57,7 @@ impl Nag {
 /// The policy services the sim listens to, one per slot (DESIGN §5), and what it holds.
 struct Inbox {
     rx: Vec<(PolicySlot, Receiver<f32, PolicyHeader>)>,
-    pool: Option<PolicyPool>,
+    policies: Option<PolicySet>,
     /// Header of the policy each slot acts with; `learner` 0: none yet.
     heads: [PolicyHeader; 3],
     seed: u64,
@@ -73,7 +73,7 @@ impl Inbox {
             .collect::<anyhow::Result<_>>()?;
         Ok(Self {
             rx,
-            pool: None,
+            policies: None,
             heads: [PolicyHeader::default(); 3],
             seed,
             stochastic,
@@ -104,16 +104,16 @@ impl Inbox {
                 let seed = self.seed.wrapping_add(slot.index() as u64);
                 Ok(PolicyController::new(policy, self.stochastic, seed))
             };
-            match &mut self.pool {
+            match &mut self.policies {
                 None => {
-                    self.pool = Some(PolicyPool::new(*slot, fresh(sample.payload())?, h.version))
+                    self.policies = Some(PolicySet::new(*slot, fresh(sample.payload())?, h.version))
                 }
-                Some(pool) => match pool.get_mut(*slot) {
+                Some(policies) => match policies.get_mut(*slot) {
                     Some(c) if c.policy.layout() == &layout => {
                         c.policy.set_weights(sample.payload())?;
-                        pool.set_version(*slot, h.version);
+                        policies.set_version(*slot, h.version);
                     }
-                    _ => pool.insert(*slot, fresh(sample.payload())?, h.version),
+                    _ => policies.insert(*slot, fresh(sample.payload())?, h.version),
                 },
             }
             let was = self.heads[slot.index()].learner;
@@ -142,7 +142,7 @@ impl Inbox {
 
     /// The version of the policy a `general` env acts with (for headers and logs).
     fn version(&self) -> u32 {
-        self.pool
+        self.policies
             .as_ref()
             .map_or(0, |p| p.version(p.resolve(PolicySlot::General)))
     }
@@ -178,7 +178,7 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
         .with_wake_interval(Duration::from_micros(cfg.sim.telemetry_notify_us as u64));
 
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
-    let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
+    let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
     let mut csv = telemetry.map(TelemetryCsv::append).transpose()?;
     let mut inbox = Inbox::connect(&bus, cfg.run.seed, !cfg.sim.mean_actions)?;
     let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
@@ -195,7 +195,7 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
     }
     tracing::info!(learners = ?inbox.learners(), "first policy received");
 
-    let mut actor = Actor::new(&batch);
+    let mut driver = Driver::new(&fleet);
     let mut classes = vec![wire::CLASS_UNKNOWN; n];
     let mut ticks = vec![EnvTick::default(); n];
     let mut chunk = Vec::with_capacity(t_steps * n + n);
@@ -207,10 +207,10 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
         chunk.clear();
         for _ in 0..t_steps {
             let wanted = switcher.update(&classes);
-            let pool = inbox.pool.as_mut().context("no policy")?;
-            actor.tick(&mut batch, pool, wanted, &classes, &mut chunk);
+            let policies = inbox.policies.as_mut().context("no policy")?;
+            driver.tick(&mut fleet, policies, wanted, &classes, &mut chunk);
             if let Some(csv) = csv.as_mut() {
-                for (env, info) in batch.envs.iter().zip(&actor.infos) {
+                for (env, info) in fleet.envs.iter().zip(&driver.infos) {
                     csv.write(&telemetry_row(env, info))?;
                 }
             }
@@ -219,18 +219,18 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
                     classes[e.env as usize] = e.class;
                 }
             }
-            actor.env_ticks(&batch, &mut ticks);
+            driver.env_ticks(&fleet, &mut ticks);
             env_steps += n as u64;
             let header = TickHeader {
                 tick,
                 env_steps,
                 policy_version: inbox.version(),
                 envs: n as u32,
-                episodes: actor.episodes.episodes,
-                successes: actor.episodes.successes,
+                episodes: driver.episodes.episodes,
+                successes: driver.episodes.successes,
                 sent_ns: wire::monotonic_ns(),
-                reach_ticks: actor.episodes.reach_ticks,
-                reach_ticks_sq: actor.episodes.reach_ticks_sq,
+                reach_ticks: driver.episodes.reach_ticks,
+                reach_ticks_sq: driver.episodes.reach_ticks_sq,
             };
             tele_tx.send(header, &ticks)?;
             tick += 1;
@@ -244,7 +244,7 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
                 }
             }
         }
-        actor.bootstrap(&mut chunk);
+        driver.bootstrap(&mut chunk);
         let header = RolloutHeader {
             chunk: chunk_id,
             env_steps,
@@ -294,8 +294,8 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(
         env_steps,
-        episodes = actor.episodes.episodes,
-        successes = actor.episodes.successes,
+        episodes = driver.episodes.episodes,
+        successes = driver.episodes.successes,
         policy_version = inbox.version(),
         env_steps_per_s = env_steps as f64 / secs,
         "sim done"

@@ -1,7 +1,7 @@
 //! `sim-proc` on its own: step the envs with a controller and write per-tick telemetry,
 //! with no other process involved.
 
-use crate::Batch;
+use crate::Fleet;
 use crate::controllers::Controller;
 use crate::env::{SharedTerrain, StepInfo};
 use crate::task::Ending;
@@ -41,23 +41,23 @@ pub struct Summary {
 /// Runs `steps` decision steps of every env under `controller`, handing each tick's rows to
 /// `sink`. Returns the episode summary.
 pub fn drive(
-    batch: &mut Batch,
+    fleet: &mut Fleet,
     controller: &mut dyn Controller,
     steps: u64,
     mut sink: impl FnMut(&TelemetryRow) -> anyhow::Result<()>,
 ) -> anyhow::Result<Summary> {
-    let n = batch.len();
+    let n = fleet.len();
     let mut obs = vec![[0.0f32; OBS_DIM]; n];
     let mut actions = vec![[0.0f32; 2]; n];
     let mut infos = vec![StepInfo::default(); n];
-    batch.observe(&mut obs);
+    fleet.observe(&mut obs);
     let mut s = Summary::default();
     for _ in 0..steps {
         for (i, a) in actions.iter_mut().enumerate() {
             *a = controller.act(i, &obs[i]);
         }
-        batch.step(&actions, &mut infos, &mut obs);
-        for (i, env) in batch.envs.iter().enumerate() {
+        fleet.step(&actions, &mut infos, &mut obs);
+        for (i, env) in fleet.envs.iter().enumerate() {
             let info = &infos[i];
             sink(&telemetry_row(env, info))?;
             if let Some(end) = info.ending {
@@ -82,19 +82,19 @@ pub fn run(
     json: Option<&Path>,
 ) -> anyhow::Result<Summary> {
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
-    let mut batch = Batch::new(&cfg.sim, &terrain, cfg.run.seed);
+    let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
     let started = std::time::Instant::now();
     let summary = match telemetry {
         Some(path) => {
             let mut csv = TelemetryCsv::create(path)?;
-            let s = drive(&mut batch, controller, steps, |row| csv.write(row))?;
+            let s = drive(&mut fleet, controller, steps, |row| csv.write(row))?;
             csv.flush()?;
             s
         }
-        None => drive(&mut batch, controller, steps, |_| Ok(()))?,
+        None => drive(&mut fleet, controller, steps, |_| Ok(()))?,
     };
     let secs = started.elapsed().as_secs_f64();
-    let decision_steps_per_s = (summary.ticks * batch.len() as u64) as f64 / secs;
+    let decision_steps_per_s = (summary.ticks * fleet.len() as u64) as f64 / secs;
     tracing::info!(
         ticks = summary.ticks,
         episodes = summary.episodes.episodes,
@@ -106,7 +106,7 @@ pub fn run(
     );
     if let Some(path) = json {
         let result = JsonResult {
-            envs: batch.len(),
+            envs: fleet.len(),
             ticks: summary.ticks,
             episodes: summary.episodes.episodes,
             successes: summary.episodes.successes,
@@ -148,8 +148,8 @@ mod tests {
         };
         cfg.task.stall_steps = 10;
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-        let mut batch = Batch::new(&cfg, &terrain, 2);
-        let s = drive(&mut batch, &mut Idle, 35, |_| Ok(())).expect("drive");
+        let mut fleet = Fleet::new(&cfg, &terrain, 2);
+        let s = drive(&mut fleet, &mut Idle, 35, |_| Ok(())).expect("drive");
         // Each robot stalls at steps 10, 20 and 30 and never reaches a target.
         assert_eq!(
             (s.episodes.episodes, s.stalls, s.episodes.successes),

@@ -1,4 +1,4 @@
-//! The policy pool and switching (DESIGN §5, SPEC S8): the sim holds one policy per slot
+//! The policy set and switching (DESIGN §5, SPEC S8): the sim holds one policy per slot
 //! (general, flat, rough), filled as learners publish; each env acts with the slot the config
 //! names or, when switching, with the specialist for the estimator's current class — changed
 //! only after the new estimate has held for a dwell time, so one noisy window does not flip it.
@@ -7,20 +7,20 @@ use crate::controllers::PolicyController;
 use common::config::{Acting, PolicySlot};
 
 /// The sim's policies, one per slot, with the version each acts at.
-pub struct PolicyPool {
+pub struct PolicySet {
     slots: [Option<PolicyController>; 3],
     versions: [u32; 3],
 }
 
-impl PolicyPool {
-    /// A pool with one policy; more slots fill as their learners publish.
+impl PolicySet {
+    /// A set with one policy; more slots fill as their learners publish.
     pub fn new(slot: PolicySlot, ctrl: PolicyController, version: u32) -> Self {
-        let mut pool = Self {
+        let mut set = Self {
             slots: [None, None, None],
             versions: [0; 3],
         };
-        pool.insert(slot, ctrl, version);
-        pool
+        set.insert(slot, ctrl, version);
+        set
     }
 
     pub fn insert(&mut self, slot: PolicySlot, ctrl: PolicyController, version: u32) {
@@ -41,7 +41,7 @@ impl PolicyPool {
     }
 
     /// The slot that acts when `wanted` is asked for: `wanted` if it has a policy, else
-    /// `general`, else the first slot that has one (a pool is never empty).
+    /// `general`, else the first slot that has one (a set is never empty).
     pub fn resolve(&self, wanted: PolicySlot) -> PolicySlot {
         [wanted, PolicySlot::General]
             .into_iter()
@@ -64,7 +64,7 @@ impl PolicyPool {
                 let (a, lp) = c.sample(obs);
                 (slot, version, a, lp)
             }
-            None => unreachable!("PolicyPool::new fills a slot and none is ever emptied"),
+            None => unreachable!("PolicySet::new fills a slot and none is ever emptied"),
         }
     }
 }
@@ -150,18 +150,18 @@ mod tests {
     }
 
     #[test]
-    fn the_pool_falls_back_to_general_then_to_any_policy() {
+    fn the_set_falls_back_to_general_then_to_any_policy() {
         let policy = |bias: f32| {
             let layout = PolicyLayout::new(OBS_DIM, &[4], ACT_DIM);
             let w = vec![bias; layout.len()];
             PolicyController::new(Policy::new(layout, w, 10.0).expect("policy"), false, 1)
         };
-        let mut pool = PolicyPool::new(PolicySlot::Rough, policy(0.1), 7);
-        assert_eq!(pool.resolve(PolicySlot::Flat), PolicySlot::Rough);
-        pool.insert(PolicySlot::General, policy(0.2), 3);
-        assert_eq!(pool.resolve(PolicySlot::Flat), PolicySlot::General);
-        assert_eq!(pool.resolve(PolicySlot::Rough), PolicySlot::Rough);
-        let (slot, version, _, _) = pool.sample(PolicySlot::Rough, &[0.0; OBS_DIM]);
+        let mut policies = PolicySet::new(PolicySlot::Rough, policy(0.1), 7);
+        assert_eq!(policies.resolve(PolicySlot::Flat), PolicySlot::Rough);
+        policies.insert(PolicySlot::General, policy(0.2), 3);
+        assert_eq!(policies.resolve(PolicySlot::Flat), PolicySlot::General);
+        assert_eq!(policies.resolve(PolicySlot::Rough), PolicySlot::Rough);
+        let (slot, version, _, _) = policies.sample(PolicySlot::Rough, &[0.0; OBS_DIM]);
         assert_eq!((slot, version), (PolicySlot::Rough, 7));
     }
 }

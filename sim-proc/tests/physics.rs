@@ -7,7 +7,7 @@ use sim_proc::env::{SharedTerrain, build_world, unity_euler};
 use sim_proc::robot;
 use sim_proc::standalone::drive;
 use sim_proc::terrain::Terrain;
-use sim_proc::{Batch, Env};
+use sim_proc::{Env, Fleet};
 
 /// A perfectly flat floor: no micro-relief, no bumps.
 fn plane() -> (SimConfig, SharedTerrain) {
@@ -149,10 +149,10 @@ fn random_driving_on_rough_ground_stays_physical() {
 /// Mean over envs and ticks of the rolling std (window 70) of sin θx under go-to-target.
 fn mean_rolling_std(cfg: &SimConfig, ticks: u64) -> f64 {
     let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-    let mut batch = Batch::new(cfg, &terrain, 3);
+    let mut fleet = Fleet::new(cfg, &terrain, 3);
     let mut ctrl = GoToController::new(cfg.robot.action_limit);
-    let mut series = vec![Vec::new(); batch.len()];
-    drive(&mut batch, &mut ctrl, ticks, |row| {
+    let mut series = vec![Vec::new(); fleet.len()];
+    drive(&mut fleet, &mut ctrl, ticks, |row| {
         series[row.env as usize].push(row.sin_pitch);
         Ok(())
     })
@@ -196,10 +196,10 @@ fn same_seed_gives_identical_telemetry_whatever_the_thread_count() {
             ..SimConfig::default()
         };
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-        let mut batch = Batch::new(&cfg, &terrain, 5);
+        let mut fleet = Fleet::new(&cfg, &terrain, 5);
         let mut ctrl = RandomController::new(3.0, 7, 5);
         let mut rows = Vec::new();
-        drive(&mut batch, &mut ctrl, 200, |r| {
+        drive(&mut fleet, &mut ctrl, 200, |r| {
             rows.push(format!("{r:?}"));
             Ok(())
         })
