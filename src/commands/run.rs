@@ -1,7 +1,7 @@
 //! `lavatube run`: one training run (see [`Run`]). Validates the config before anything
 //! starts, then runs it to the end and prints its summary.
 
-use crate::runtime::{Run, sweep_dead_runs};
+use crate::runtime::{Finished, ResumedConfig, Run, report_sweep};
 use common::Config;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -19,6 +19,12 @@ pub struct RunArgs {
     /// No progress bar (for logs and CI).
     #[arg(long)]
     pub quiet: bool,
+    /// Go on with the stopped run in this directory (killed, or its machine restarted): its
+    /// config and run id, each learner from its newest checkpoint (policy versions and the
+    /// learning-rate schedule continue), the sim from the env steps that checkpoint learned
+    /// from. What was learned after the last checkpoint is lost.
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["config", "run_id"])]
+    pub resume: Option<PathBuf>,
 }
 
 /// A fresh run id: seconds since the epoch and the launcher's pid, in base 36-ish hex.
@@ -30,25 +36,36 @@ fn new_run_id() -> String {
 }
 
 pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
+    if let Some(dir) = &args.resume {
+        let resumed = ResumedConfig::load(dir)?;
+        report_sweep();
+        let finished = Run::resume(&resumed, args.quiet)?.execute()?;
+        return Ok(exit_code(&finished));
+    }
     let cfg = match &args.config {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
     let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
-    Ok(if execute(&cfg, &run_id, &run_id, args.quiet)? {
-        ExitCode::SUCCESS
-    } else {
+    report_sweep();
+    let finished = Run::prepare(&cfg, &run_id, &run_id, args.quiet)?.execute()?;
+    Ok(exit_code(&finished))
+}
+
+/// 130 (as a shell reports SIGINT) for a run stopped by Ctrl-C, else success.
+fn exit_code(finished: &Finished) -> ExitCode {
+    if finished.interrupted {
         ExitCode::from(130)
-    })
+    } else {
+        ExitCode::SUCCESS
+    }
 }
 
 /// Runs `cfg` in `<run.out-dir>/<dir_name>/` to the end, its processes meeting in the shared
 /// memory of run `run_id`, after removing what dead runs left. Returns false when
 /// interrupted (Ctrl-C).
 pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyhow::Result<bool> {
-    for (run, files) in sweep_dead_runs() {
-        eprintln!("lavatube: removed {files} file(s) left by dead run {run}");
-    }
+    report_sweep();
     let finished = Run::prepare(cfg, dir_name, run_id, quiet)?.execute()?;
     Ok(!finished.interrupted)
 }

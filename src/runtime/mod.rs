@@ -16,10 +16,10 @@ mod sweep;
 pub use bins::{Binaries, locate};
 pub use child::{Child, Output, Usage};
 pub use role::Role;
-pub use run::{Finished, LAUNCHER_NODE, Run, TELEMETRY_CSV, learner_dir};
+pub use run::{Finished, LAUNCHER_NODE, ResumedConfig, Run};
 pub use summary::{MeanStd, Progress, Summary};
 pub use supervisor::{Event, Spec, Supervised};
-pub use sweep::sweep_dead_runs;
+pub use sweep::{report_sweep, sweep_dead_runs};
 
 use indicatif::ProgressBar;
 

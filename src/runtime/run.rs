@@ -7,28 +7,16 @@ use super::swap::{SwapContext, learner_args, swap_learner};
 use super::{Binaries, Event, Progress, Role, Spec, Summary, Supervised, ladder, say};
 use crate::error::UserError;
 use anyhow::Context;
-use common::Config;
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, SwapServer};
 use common::wire::{EnvTick, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
+use common::{Config, run_dir};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-/// Where a run with `run.telemetry-csv` keeps the sim's telemetry, in its run directory.
-pub const TELEMETRY_CSV: &str = "telemetry.csv";
-
 /// The launcher's node name on a run's bus: a live one means the run id is taken.
 pub const LAUNCHER_NODE: &str = "launcher";
-
-/// Where a slot's learner writes metrics and checkpoints: the run directory for `general`,
-/// a subdirectory per specialist.
-pub fn learner_dir(run_dir: &Path, slot: PolicySlot) -> PathBuf {
-    match slot {
-        PolicySlot::General => run_dir.to_path_buf(),
-        s => run_dir.join(s.learner_name()),
-    }
-}
 
 /// A run, prepared: its id checked, its directory made, its resolved config written.
 pub struct Run<'a> {
@@ -39,6 +27,43 @@ pub struct Run<'a> {
     cfg_path: PathBuf,
     bins: Binaries,
     bar: ProgressBar,
+    /// Going on from the run directory's checkpoints (`lavatube run --resume`).
+    resume: bool,
+}
+
+/// A run directory to resume: its resolved config, and its run id (the directory's name).
+#[derive(Debug)]
+pub struct ResumedConfig {
+    pub cfg: Config,
+    pub run_id: String,
+    pub dir: PathBuf,
+}
+
+impl ResumedConfig {
+    /// Reads `dir/config.toml`. Fails in one line when `dir` is no run directory.
+    pub fn load(dir: &Path) -> anyhow::Result<Self> {
+        let dir = std::path::absolute(dir)
+            .with_context(|| format!("cannot resolve {}", dir.display()))?;
+        let cfg_path = dir.join(run_dir::CONFIG_TOML);
+        if !cfg_path.is_file() {
+            return Err(UserError(format!(
+                "--resume {}: not a run directory (no config.toml)",
+                dir.display()
+            ))
+            .into());
+        }
+        let run_id = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        ipc::validate_run_id(&run_id)
+            .map_err(|e| UserError(format!("--resume {}: {e}", dir.display())))?;
+        Ok(Self {
+            cfg: Config::load(&cfg_path)?,
+            run_id,
+            dir,
+        })
+    }
 }
 
 /// How a run ended.
@@ -59,6 +84,36 @@ impl<'a> Run<'a> {
         run_id: &str,
         quiet: bool,
     ) -> anyhow::Result<Self> {
+        // Absolute, so logs and the children's arguments name it unambiguously.
+        let dir = std::path::absolute(cfg.run.out_dir.join(dir_name))
+            .with_context(|| format!("cannot resolve {}", cfg.run.out_dir.display()))?;
+        if dir.exists() {
+            return Err(UserError(format!(
+                "run directory {} already exists: pick another --run-id",
+                dir.display()
+            ))
+            .into());
+        }
+        let run = Self::open(cfg, run_id, dir, quiet)?;
+        std::fs::create_dir_all(&run.logs)
+            .with_context(|| format!("cannot create {}", run.logs.display()))?;
+        std::fs::write(&run.cfg_path, cfg.to_toml())
+            .with_context(|| format!("cannot write {}", run.cfg_path.display()))?;
+        Ok(run)
+    }
+
+    /// Prepares the run in `dir` to go on where it stopped (see [`ResumedConfig`]): same
+    /// config and run id, each learner from its newest checkpoint, the sim counting on from
+    /// the steps that checkpoint had learned from.
+    pub fn resume(resumed: &'a ResumedConfig, quiet: bool) -> anyhow::Result<Self> {
+        let mut run = Self::open(&resumed.cfg, &resumed.run_id, resumed.dir.clone(), quiet)?;
+        run.resume = true;
+        std::fs::create_dir_all(&run.logs)
+            .with_context(|| format!("cannot create {}", run.logs.display()))?;
+        Ok(run)
+    }
+
+    fn open(cfg: &'a Config, run_id: &str, dir: PathBuf, quiet: bool) -> anyhow::Result<Self> {
         let bins = Binaries::locate()?;
         // Two runs on one id would read each other's messages and remove each other's shared
         // memory at the end. Other nodes (monitors, tests watching the run) may come first.
@@ -75,22 +130,6 @@ impl<'a> Run<'a> {
             ))
             .into());
         }
-        // Absolute, so logs and the children's arguments name it unambiguously.
-        let dir = std::path::absolute(cfg.run.out_dir.join(dir_name))
-            .with_context(|| format!("cannot resolve {}", cfg.run.out_dir.display()))?;
-        if dir.exists() {
-            return Err(UserError(format!(
-                "run directory {} already exists: pick another --run-id",
-                dir.display()
-            ))
-            .into());
-        }
-        let logs = dir.join("logs");
-        std::fs::create_dir_all(&logs)
-            .with_context(|| format!("cannot create {}", logs.display()))?;
-        let cfg_path = dir.join("config.toml");
-        std::fs::write(&cfg_path, cfg.to_toml())
-            .with_context(|| format!("cannot write {}", cfg_path.display()))?;
         let bar = if quiet {
             ProgressBar::hidden()
         } else {
@@ -103,11 +142,12 @@ impl<'a> Run<'a> {
         Ok(Self {
             cfg,
             id: run_id.to_string(),
+            logs: dir.join(run_dir::LOGS),
+            cfg_path: dir.join(run_dir::CONFIG_TOML),
             dir,
-            logs,
-            cfg_path,
             bins,
             bar,
+            resume: false,
         })
     }
 
@@ -144,21 +184,24 @@ impl<'a> Run<'a> {
                 if let Some(init) = &cfg.run.init_from {
                     join.extend(["--init-from".into(), init.display().to_string()]);
                 }
-                let args = learner_args(&join, &learner_dir(&self.dir, slot), None);
+                let args = learner_args(&join, &run_dir::learner_dir(&self.dir, slot), None);
                 spec(Role::Learner(slot), args, sup.learner)
             })
             .collect();
         specs.extend(cfg.run.frozen.iter().map(|(&slot, ckpt)| {
             let join = join(&["serve", "--slot", slot.name(), "--frozen"]);
-            let args = learner_args(&join, &learner_dir(&self.dir, slot), Some(ckpt));
+            let args = learner_args(&join, &run_dir::learner_dir(&self.dir, slot), Some(ckpt));
             spec(Role::Learner(slot), args, sup.learner)
         }));
         specs.push(spec(Role::Estimator, join(&["serve"]), sup.estimator));
         let mut sim_args = join(&[]);
+        if self.resume {
+            sim_args.push("--resume".into());
+        }
         if cfg.run.telemetry_csv {
             sim_args.extend([
                 "--telemetry".into(),
-                self.dir.join(TELEMETRY_CSV).display().to_string(),
+                self.dir.join(run_dir::TELEMETRY_CSV).display().to_string(),
             ]);
         }
         specs.push(spec(Role::Sim, sim_args, sup.sim));
@@ -171,8 +214,9 @@ impl<'a> Run<'a> {
         say(
             &self.bar,
             format!(
-                "run {}: {}, {:?} mode → {}",
+                "run {}{}: {}, {:?} mode → {}",
                 self.id,
+                if self.resume { " (resumed)" } else { "" },
                 self.cfg.sim.describe_envs(),
                 self.cfg.run.mode,
                 self.dir.display()
@@ -255,7 +299,7 @@ impl<'a> Run<'a> {
                 .insert(name.clone(), m.child.status().map(|s| s.to_string()));
             summary.restarts.insert(name, m.restarts);
         }
-        let path = self.dir.join("summary.json");
+        let path = self.dir.join(run_dir::SUMMARY_JSON);
         std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("{}", summary.line(&self.dir));
@@ -334,7 +378,7 @@ impl Supervision<'_, '_> {
         bar.set_message(format!(
             "v{} success {:.0}% terrain {}",
             p.tick.policy_version,
-            100.0 * p.success_rate(),
+            100.0 * p.episodes().success_rate(),
             p.terrain_accuracy()
                 .map_or("-".into(), |a| format!("{:.0}%", 100.0 * a))
         ));

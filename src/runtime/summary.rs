@@ -1,6 +1,7 @@
 //! What a run reports: the progress it shows while it runs, read from its own telemetry and
 //! terrain services, and the typed [`Summary`] behind `summary.json` when it ends.
 
+use common::episode::EpisodeStats;
 use common::wire::{TerrainHeader, TickHeader};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -16,18 +17,9 @@ pub struct Progress {
 }
 
 impl Progress {
-    pub fn success_rate(&self) -> f64 {
-        self.tick.successes as f64 / self.tick.episodes.max(1) as f64
-    }
-
-    /// Mean and std of the reach time of successful episodes, seconds (SPEC S8, Table 1).
-    pub fn reach_seconds(&self, decision_dt: f64) -> Option<(f64, f64)> {
-        let n = self.tick.successes as f64;
-        (n > 0.0).then(|| {
-            let mean = self.tick.reach_ticks as f64 / n;
-            let var = (self.tick.reach_ticks_sq as f64 / n - mean * mean).max(0.0);
-            (mean * decision_dt, var.sqrt() * decision_dt)
-        })
+    /// The episodes the sim has counted so far.
+    pub fn episodes(&self) -> EpisodeStats {
+        EpisodeStats::from(&self.tick)
     }
 
     pub fn terrain_accuracy(&self) -> Option<f64> {
@@ -76,15 +68,16 @@ impl Summary {
         learner_swaps: u32,
     ) -> Self {
         let env_steps = progress.tick.env_steps;
+        let episodes = progress.episodes();
         Self {
             run_id: run_id.to_string(),
             env_steps,
             wall_seconds,
             env_steps_per_second: env_steps as f64 / wall_seconds.max(1e-9),
-            episodes: progress.tick.episodes,
-            successes: progress.tick.successes,
-            success_rate: progress.success_rate(),
-            reach_seconds: progress
+            episodes: episodes.episodes,
+            successes: episodes.successes,
+            success_rate: episodes.success_rate(),
+            reach_seconds: episodes
                 .reach_seconds(decision_dt)
                 .map(|(mean, std)| MeanStd { mean, std }),
             policy_version: progress.tick.policy_version,
@@ -130,9 +123,9 @@ mod tests {
             },
             ..Progress::default()
         };
-        let (mean, std) = p.reach_seconds(0.1).expect("successes");
+        let (mean, std) = p.episodes().reach_seconds(0.1).expect("successes");
         assert!((mean - 1.5).abs() < 1e-12 && (std - 0.5).abs() < 1e-12);
-        assert_eq!(Progress::default().reach_seconds(0.1), None);
+        assert_eq!(Progress::default().episodes().reach_seconds(0.1), None);
     }
 
     #[test]

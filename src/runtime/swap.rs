@@ -4,8 +4,8 @@
 //! run's newest checkpoint (or the named one) and continues the version sequence.
 
 use super::{Supervised, ladder};
-use common::Config;
 use common::wire::SwapRequest;
+use common::{Config, run_dir};
 use indicatif::ProgressBar;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -71,7 +71,7 @@ pub fn swap_learner(
                 differ.join(", ")
             ));
         }
-        let resolved = ctx.run_dir.join(format!("learner-config-{n}.toml"));
+        let resolved = ctx.run_dir.join(run_dir::swapped_learner_config(n));
         std::fs::write(&resolved, new.to_toml())
             .map_err(|e| format!("cannot write {}: {e}", resolved.display()))?;
         if let Some(i) = join.iter().position(|a| a == "--config") {

@@ -22,3 +22,10 @@ pub fn sweep_dead_runs() -> Vec<(String, usize)> {
     }
     swept
 }
+
+/// Sweeps (see [`sweep_dead_runs`]) and says what was removed, one line per run.
+pub fn report_sweep() {
+    for (run, files) in sweep_dead_runs() {
+        eprintln!("lavatube: removed {files} file(s) left by dead run {run}");
+    }
+}

@@ -61,6 +61,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
         .into());
     }
     let bins = crate::runtime::Binaries::locate()?;
+    crate::runtime::report_sweep();
     let secs = SystemTime::now()
         .duration_since(UNIX_EPOCH)
         .map_or(0, |d| d.as_secs());

@@ -11,7 +11,7 @@ use anyhow::{Context, bail};
 use common::config::{LearnMode, PolicySlot};
 use common::ipc::{self, Bus};
 use common::wire::PolicyHeader;
-use common::{ACT_DIM, OBS_DIM, Policy, PolicyLayout, Rng};
+use common::{ACT_DIM, OBS_DIM, Policy, PolicyLayout, Rng, run_dir};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -219,7 +219,7 @@ pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
     let dir = ctx.dir.join(m.label());
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let cfg = ctx.plan.config_for(m, &dir);
-    let cfg_path = dir.join("config.toml");
+    let cfg_path = dir.join(run_dir::CONFIG_TOML);
     std::fs::write(&cfg_path, cfg.to_toml())
         .with_context(|| format!("cannot write {}", cfg_path.display()))?;
     let started = Instant::now();
@@ -425,7 +425,7 @@ fn in_run(
     row.rollout_chunks_received = Some(r.chunks);
     row.rollout_chunks_missed = Some(expected_chunks.saturating_sub(r.chunks));
     if m.stage.has_learner() {
-        let (updates, sps, lag) = learner_metrics(&dir.join("metrics.csv"))?;
+        let (updates, sps, lag) = learner_metrics(&dir.join(run_dir::METRICS_CSV))?;
         row.learner_updates = Some(updates);
         row.learner_samples_per_s = Some(sps);
         row.policy_lag_versions = Some(lag);

@@ -5,7 +5,7 @@ use super::super::run::execute;
 use super::legs::{Cell, Evaluated, Legs, legs_in};
 use super::pipeline::Pipeline;
 use crate::runtime;
-use crate::runtime::TELEMETRY_CSV;
+use common::run_dir::TELEMETRY_CSV;
 use anyhow::Context;
 use common::Config;
 use common::config::{Acting, AreaKind, EpisodeStart, PolicySlot};

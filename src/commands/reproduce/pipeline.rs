@@ -6,7 +6,7 @@ use super::report::report;
 use super::selection::specialists;
 use crate::runtime;
 use anyhow::Context;
-use common::Config;
+use common::{Config, run_dir};
 use common::config::{Acting, PolicySlot};
 use std::path::PathBuf;
 use std::process::Command;
@@ -34,7 +34,7 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let base = &p.base;
     let out = &p.out;
     let r = &base.reproduce;
-    std::fs::write(out.join("config.toml"), base.to_toml())?;
+    std::fs::write(out.join(run_dir::CONFIG_TOML), base.to_toml())?;
 
     let mut a = p.envs(r.flat_envs, 0);
     a.run.total_steps = r.flat_steps;
@@ -76,7 +76,7 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
             .args(["--windows", &windows, "--out"])
             .arg(&analysis)
             .arg("--config")
-            .arg(out.join("config.toml"))
+            .arg(out.join(run_dir::CONFIG_TOML))
             .status()?;
         anyhow::ensure!(status.success(), "estimator-proc analyze failed");
         p.finish("d-analysis", serde_json::json!({ "windows": windows }))?;

@@ -6,7 +6,7 @@ use super::legs::{Cell, Evaluated};
 use super::pipeline::Pipeline;
 use super::selection::{GENERAL, Selection, chosen_before};
 use super::statistics::mean_ci;
-use crate::runtime::learner_dir;
+use common::run_dir::{self, learner_dir};
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};
 
@@ -262,7 +262,7 @@ pub(super) fn report(
         ("e-specialists", PolicySlot::Flat),
         ("e-specialists", PolicySlot::Rough),
     ] {
-        let png = learner_dir(&p.stage_dir(stage), slot).join("curves.png");
+        let png = learner_dir(&p.stage_dir(stage), slot).join(run_dir::CURVES_PNG);
         if png.is_file() {
             let rel = png.strip_prefix(&p.out).unwrap_or(&png);
             md += &format!("![{stage} {}]({})\n\n", slot.name(), rel.display());

@@ -4,7 +4,7 @@
 use super::super::run::execute;
 use super::pipeline::Pipeline;
 use crate::runtime;
-use crate::runtime::learner_dir;
+use common::run_dir::{self, learner_dir};
 use anyhow::Context;
 use common::Config;
 use common::config::PolicySlot;
@@ -78,7 +78,7 @@ impl Pipeline {
         name: &str,
         slot: PolicySlot,
     ) -> anyhow::Result<Vec<(u64, PathBuf)>> {
-        let dir = learner_dir(&self.stage_dir(name), slot).join("checkpoints");
+        let dir = learner_dir(&self.stage_dir(name), slot).join(run_dir::CHECKPOINTS);
         let mut files: Vec<(u64, PathBuf)> = std::fs::read_dir(&dir)
             .with_context(|| format!("cannot list {}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
