@@ -7,6 +7,7 @@
 use std::fs::{File, OpenOptions};
 use std::path::{Path, PathBuf};
 
+use common::episode::EpisodeStats;
 use common::run_dir::METRICS_CSV;
 use serde::{Deserialize, Serialize};
 
@@ -65,22 +66,23 @@ pub(crate) struct EpisodeSummary {
 }
 
 impl EpisodeSummary {
+    /// Success rate and reach time by [`EpisodeStats`]'s formulas, the ones every other
+    /// reader of episode outcomes uses; all columns empty when no episode ended.
     pub fn of(episodes: &[EpisodeOutcome], decision_dt: f64) -> Self {
+        let mut stats = EpisodeStats::default();
+        for e in episodes {
+            stats.record(e.success, u64::from(e.steps));
+        }
         let count = episodes.len();
-        let mean = |xs: &mut dyn Iterator<Item = f64>| {
-            let (sum, n) = xs.fold((0.0, 0usize), |(s, n), x| (s + x, n + 1));
-            (n > 0).then(|| sum / n as f64)
-        };
+        let ended = count > 0;
+        let total_return = episodes
+            .iter()
+            .fold(0.0, |sum, e| sum + f64::from(e.episode_return));
         Self {
             count,
-            mean_return: mean(&mut episodes.iter().map(|e| f64::from(e.episode_return))),
-            success_rate: mean(&mut episodes.iter().map(|e| if e.success { 1.0 } else { 0.0 })),
-            mean_reach_time_s: mean(
-                &mut episodes
-                    .iter()
-                    .filter(|e| e.success)
-                    .map(|e| f64::from(e.steps) * decision_dt),
-            ),
+            mean_return: ended.then(|| total_return / count as f64),
+            success_rate: ended.then(|| stats.success_rate()),
+            mean_reach_time_s: stats.reach_seconds(decision_dt).map(|(mean, _)| mean),
         }
     }
 }
