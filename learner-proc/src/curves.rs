@@ -1,7 +1,7 @@
 //! Learning curves: a run's `metrics.csv` drawn as one PNG of eight panels over env steps.
 //!
 //! The CSV is read by column name, not as [`UpdateMetrics`](crate::UpdateMetrics), so a file
-//! written by an older build with other columns still plots. A metric left empty (no episode
+//! with other columns than this build writes still plots. A metric left empty (no episode
 //! ended) or not finite (explained variance of constant returns) is skipped in its panel only.
 //! Each panel shows the raw values faintly and a debiased exponential moving average on top,
 //! since per-update episode statistics rest on few episodes and are noisy.
