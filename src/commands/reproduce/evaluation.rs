@@ -5,10 +5,10 @@ use super::super::run::execute;
 use super::legs::{Cell, Evaluated, Legs, legs_in};
 use super::pipeline::Pipeline;
 use crate::runtime;
-use common::run_dir::TELEMETRY_CSV;
 use anyhow::Context;
 use common::Config;
 use common::config::{Acting, AreaKind, EpisodeStart, PolicySlot};
+use common::run_dir::TELEMETRY_CSV;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -6,8 +6,8 @@ use super::report::report;
 use super::selection::specialists;
 use crate::runtime;
 use anyhow::Context;
-use common::{Config, run_dir};
 use common::config::{Acting, PolicySlot};
+use common::{Config, run_dir};
 use std::path::PathBuf;
 use std::process::Command;
 

@@ -6,9 +6,9 @@ use super::legs::{Cell, Evaluated};
 use super::pipeline::Pipeline;
 use super::selection::{GENERAL, Selection, chosen_before};
 use super::statistics::mean_ci;
-use common::run_dir::{self, learner_dir};
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};
+use common::run_dir::{self, learner_dir};
 
 /// One cell of the paper's Table 1: success %, mean reach time s, its std.
 type PaperCell = (f64, f64, f64);

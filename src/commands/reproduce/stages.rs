@@ -4,10 +4,10 @@
 use super::super::run::execute;
 use super::pipeline::Pipeline;
 use crate::runtime;
-use common::run_dir::{self, learner_dir};
 use anyhow::Context;
 use common::Config;
 use common::config::PolicySlot;
+use common::run_dir::{self, learner_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -83,13 +83,7 @@ impl Pipeline {
             .with_context(|| format!("cannot list {}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter_map(|p| {
-                let update = p
-                    .file_name()?
-                    .to_str()?
-                    .strip_prefix("checkpoint-")?
-                    .strip_suffix(".ckpt")?
-                    .parse()
-                    .ok()?;
+                let update = run_dir::parse_checkpoint_file(p.file_name()?.to_str()?)?;
                 Some((update, p))
             })
             .collect();
