@@ -1,9 +1,10 @@
 //! DESIGN §4 when the launcher itself dies: `kill -9` of `lavatube run` leaves nothing
 //! running. Each child asked the kernel for SIGTERM on its launcher's death, so the sim and
 //! the estimator stop and the learner checkpoints and stops; `lavatube clean` then removes
-//! the run's shared memory.
+//! the run's shared memory, and `lavatube run --resume` goes on from the checkpoint.
 
-use common::ipc::{self, Bus};
+use common::ipc::{self, Bus, Receiver};
+use common::run_dir;
 use common::wire::{EnvTick, PolicyHeader, TickHeader};
 use std::time::{Duration, Instant};
 
@@ -22,28 +23,60 @@ fn running(pid: i32) -> bool {
     })
 }
 
+/// A test's view of a run: its telemetry and the general learner's policies.
+struct Monitor {
+    bus: Bus,
+    ticks: Receiver<EnvTick, TickHeader>,
+    policies: Receiver<f32, PolicyHeader>,
+}
+
+impl Monitor {
+    fn connect(run: &str) -> Self {
+        let bus = Bus::connect(run, "monitor").expect("monitor node");
+        Self {
+            ticks: bus.receiver(&ipc::TELEMETRY, None).expect("telemetry"),
+            policies: bus.receiver(&ipc::POLICY, Some("general")).expect("policy"),
+            bus,
+        }
+    }
+
+    /// Waits for a telemetry tick and a policy of at least `version`; the first tick seen
+    /// and the first policy header seen.
+    fn until_going(&self, version: u32) -> (TickHeader, PolicyHeader) {
+        let give_up = Instant::now() + PATIENCE;
+        let (mut tick, mut first, mut newest) = (None, None, 0);
+        while newest < version || tick.is_none() {
+            assert!(Instant::now() < give_up, "the run did not get going");
+            self.ticks.wait(Duration::from_millis(10)).expect("wait");
+            if let Some(t) = self.ticks.try_recv().expect("telemetry") {
+                tick.get_or_insert(*t.user_header());
+            }
+            while let Some(p) = self.policies.try_recv().expect("policy") {
+                let h = *p.user_header();
+                first.get_or_insert(h);
+                newest = newest.max(h.version);
+            }
+        }
+        (tick.expect("a tick"), first.expect("a policy"))
+    }
+}
+
+/// The newest checkpoint's update number in `dir`.
+fn newest_checkpoint(dir: &std::path::Path) -> u64 {
+    std::fs::read_dir(dir.join(run_dir::CHECKPOINTS))
+        .expect("checkpoints")
+        .filter_map(|e| run_dir::parse_checkpoint_file(&e.ok()?.file_name().to_string_lossy()))
+        .max()
+        .expect("a checkpoint")
+}
+
 #[test]
-fn a_killed_launcher_leaves_no_process_and_clean_leaves_no_shared_memory() {
+fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoint() {
     let run = format!("orphan-{}", std::process::id());
     let launcher = support::Launched::start(CONFIG, &run);
     let dir = support::root().join("target/e2e-runs").join(&run);
-    let bus = Bus::connect(&run, "monitor").expect("monitor node");
-    let ticks = bus
-        .receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)
-        .expect("telemetry");
-    let policies = bus
-        .receiver::<f32, PolicyHeader>(&ipc::POLICY, Some("general"))
-        .expect("policy");
-    let give_up = Instant::now() + PATIENCE;
-    let (mut version, mut ticked) = (0, false);
-    while version < 1 || !ticked {
-        assert!(Instant::now() < give_up, "the run did not get going");
-        ticks.wait(Duration::from_millis(10)).expect("wait");
-        ticked |= ticks.try_recv().expect("telemetry").is_some();
-        while let Some(p) = policies.try_recv().expect("policy") {
-            version = version.max(p.user_header().version);
-        }
-    }
+    let monitor = Monitor::connect(&run);
+    monitor.until_going(1);
     let children: Vec<(String, i32)> = ipc::list_nodes(&run)
         .expect("nodes")
         .into_iter()
@@ -89,7 +122,7 @@ fn a_killed_launcher_leaves_no_process_and_clean_leaves_no_shared_memory() {
         log.lines().any(|l| l.contains("learner done")),
         "the learner's log is whole, to its last line:\n{log}"
     );
-    drop((ticks, policies, bus));
+    drop(monitor);
 
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_lavatube"))
         .args(["clean", "--run-id", &run])
@@ -102,4 +135,37 @@ fn a_killed_launcher_leaves_no_process_and_clean_leaves_no_shared_memory() {
     );
     assert_eq!(ipc::run_files(&run), Vec::<std::path::PathBuf>::new());
     drop(launcher);
+
+    // The run goes on from its checkpoint: the learner's update count, policy versions and
+    // the sim's step count continue; nothing starts over.
+    let saved = newest_checkpoint(&dir);
+    let dir_arg = dir.display().to_string();
+    let resumed = support::Launched::run(&["--resume", &dir_arg], &format!("{run}-resumed"));
+    let monitor = Monitor::connect(&run);
+    let (tick, policy) = monitor.until_going(saved as u32 + 1);
+    assert!(
+        policy.version as u64 >= saved,
+        "the resumed learner publishes version {} after {saved} updates",
+        policy.version
+    );
+    assert!(
+        tick.env_steps > policy.env_steps && policy.env_steps >= saved * 1024,
+        "the sim counts on from the checkpoint's {} steps: first tick at {}",
+        policy.env_steps,
+        tick.env_steps
+    );
+    drop(monitor);
+    let (code, said) = resumed.wait_interrupted();
+    assert_eq!(code, 130, "{said}");
+    assert!(said.contains("(resumed)"), "{said}");
+    let metrics = std::fs::read_to_string(dir.join(run_dir::METRICS_CSV)).expect("metrics");
+    let updates: Vec<u64> = metrics
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').next()?.parse().ok())
+        .collect();
+    assert!(
+        updates.windows(2).all(|w| w[1] > w[0]) && updates.contains(&(saved + 1)),
+        "one update sequence across the resume: {updates:?}"
+    );
 }

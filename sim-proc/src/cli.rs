@@ -63,6 +63,10 @@ pub struct Args {
     /// act with the learner's policy and publish rollouts and telemetry.
     #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "sample", "steps", "json"])]
     pub run_id: Option<String>,
+    /// In a run: count env steps on from the newest step count the learners' first
+    /// policies carry (their checkpoints'), as `lavatube run --resume` asks.
+    #[arg(long, requires = "run_id")]
+    pub resume: bool,
 }
 
 /// Runs `sim-proc`: joins the run `--run-id` names, or steps the envs alone with the
@@ -76,7 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         cfg.run.seed = seed;
     }
     if let Some(run) = &args.run_id {
-        crate::serve::serve(&cfg, run, args.telemetry.as_deref())?;
+        crate::serve::serve(&cfg, run, args.telemetry.as_deref(), args.resume)?;
         return Ok(Summary::default());
     }
     let mut controller = controller(&args, &cfg)?;

@@ -147,6 +147,11 @@ impl Inbox {
             .map_or(0, |p| p.version(p.resolve(PolicySlot::General)))
     }
 
+    /// The newest env-step count of the policies received (a learner's is its checkpoint's).
+    fn env_steps(&self) -> u64 {
+        self.heads.iter().map(|h| h.env_steps).max().unwrap_or(0)
+    }
+
     /// The slots that have learners, with the learner each has now.
     fn learners(&self) -> Vec<(PolicySlot, u32)> {
         PolicySlot::ALL
@@ -165,7 +170,12 @@ fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
 }
 
 /// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request.
-pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Result<()> {
+pub fn serve(
+    cfg: &Config,
+    run_id: &str,
+    telemetry: Option<&Path>,
+    resume: bool,
+) -> anyhow::Result<()> {
     let n = cfg.sim.num_envs();
     let t_steps = cfg.ppo.rollout_steps(n);
     let bus = Bus::connect(run_id, "sim")?;
@@ -199,7 +209,17 @@ pub fn serve(cfg: &Config, run_id: &str, telemetry: Option<&Path>) -> anyhow::Re
     let mut classes = vec![wire::CLASS_UNKNOWN; n];
     let mut ticks = vec![EnvTick::default(); n];
     let mut chunk = Vec::with_capacity(t_steps * n + n);
-    let (mut env_steps, mut chunk_id, mut tick) = (0u64, 0u64, 0u64);
+    // Resumed, the run goes on from the steps its learners' checkpoints had learned from
+    // (what the sim stepped after them is collected again); chunk ids start over, as they
+    // do for any learner that joins.
+    let mut env_steps = if resume { inbox.env_steps() } else { 0 };
+    if resume {
+        tracing::info!(
+            env_steps,
+            "resumed: counting on from the learners' checkpoints"
+        );
+    }
+    let (mut chunk_id, mut tick) = (0u64, 0u64);
     let started = Instant::now();
     let mut looked = started;
     'run: while env_steps < cfg.run.total_steps {

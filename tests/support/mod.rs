@@ -23,10 +23,18 @@ pub struct Launched {
 impl Launched {
     /// `lavatube run --config CONFIG --run-id RUN_ID --quiet` from the repository root.
     pub fn start(config: &str, run_id: &str) -> Self {
-        let log_path = std::env::temp_dir().join(format!("lavatube-test-{run_id}.log"));
+        Self::run(&["--config", config, "--run-id", run_id], run_id)
+    }
+
+    /// `lavatube run ARGS… --quiet` from the repository root, its output in a file named
+    /// after `tag`.
+    pub fn run(args: &[&str], tag: &str) -> Self {
+        let log_path = std::env::temp_dir().join(format!("lavatube-test-{tag}.log"));
         let log = std::fs::File::create(&log_path).expect("log file");
         let child = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-            .args(["run", "--config", config, "--run-id", run_id, "--quiet"])
+            .arg("run")
+            .args(args)
+            .arg("--quiet")
             .current_dir(root())
             .stdout(Stdio::from(log.try_clone().expect("log file")))
             .stderr(Stdio::from(log))
@@ -41,6 +49,16 @@ impl Launched {
         let text = std::fs::read_to_string(&self.log_path).unwrap_or_default();
         let _ = std::fs::remove_file(&self.log_path);
         (status.code().unwrap_or(-1), text)
+    }
+
+    /// Stops the launcher as Ctrl-C would and waits; its exit code and what it printed.
+    #[allow(dead_code)] // each test binary compiles this module; not all use every helper
+    pub fn wait_interrupted(self) -> (i32, String) {
+        // SAFETY: kill(2) on our own child, not yet reaped.
+        unsafe {
+            libc::kill(self.child.id() as i32, libc::SIGINT);
+        }
+        self.wait()
     }
 
     fn wait_status(&mut self) -> std::process::ExitStatus {
