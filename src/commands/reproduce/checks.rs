@@ -180,7 +180,7 @@ mod tests {
             )
             .ends_with("| within margin |")
         );
-        // One leg of 100 lost: -1 pp, sd 10, so ± 1.96: within the noise.
+        // One leg of 100 lost: -1 pp, sd 10, so ± 1.98 (t(99)): within the noise.
         cells[7] = eval(
             "switching",
             AreaKind::Rough,
@@ -192,7 +192,7 @@ mod tests {
             row_of(&checks(&cells), "switching ≥ RTM on rough")
                 .ends_with("| -1.0 ± 2.0 | +0.00 ± 0.00 | within margin |")
         );
-        // Ten more legs reached on the mixed course: +10 pp ± 5.9, better beyond the noise.
+        // Ten more legs reached on the mixed course: +10 pp ± 6.0, better beyond the noise.
         cells[11] = eval(
             "switching",
             AreaKind::Mixed,
@@ -200,7 +200,7 @@ mod tests {
         );
         assert!(
             row_of(&checks(&cells), "switching better than general on mixed")
-                .ends_with("| +10.0 ± 5.9 | +0.00 ± 0.00 | yes |")
+                .ends_with("| +10.0 ± 6.0 | +0.00 ± 0.00 | yes |")
         );
     }
 
