@@ -337,11 +337,7 @@ fn the_sim_survives_learner_and_estimator_faults_swaps_and_strangers() {
     // A process with another wire version is refused at connect; the run goes on.
     let stranger: ipc::Channel<OldTransition, RolloutHeader> =
         ipc::Channel::new(ipc::ROLLOUT.service, ipc::ROLLOUT.capacity);
-    let err = m
-        .bus
-        .receiver(&stranger, None)
-        .err()
-        .expect("refused");
+    let err = m.bus.receiver(&stranger, None).err().expect("refused");
     assert!(
         err.to_string()
             .contains("different version of its message types"),

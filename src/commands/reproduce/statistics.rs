@@ -84,7 +84,13 @@ mod tests {
     #[test]
     fn the_quantile_is_students_t() {
         // Textbook values, to the three decimals tables print.
-        for (df, t) in [(1, 12.706), (2, 4.303), (10, 2.228), (30, 2.042), (1000, 1.962)] {
+        for (df, t) in [
+            (1, 12.706),
+            (2, 4.303),
+            (10, 2.228),
+            (30, 2.042),
+            (1000, 1.962),
+        ] {
             assert!((t975(df) - t).abs() < 5e-4, "df {df}: {}", t975(df));
         }
     }
