@@ -25,7 +25,8 @@ fn running(pid: i32) -> bool {
 
 /// A test's view of a run: its telemetry and the general learner's policies.
 struct Monitor {
-    bus: Bus,
+    /// The ports' node, held as long as they are.
+    _node: Bus,
     ticks: Receiver<EnvTick, TickHeader>,
     policies: Receiver<f32, PolicyHeader>,
 }
@@ -36,7 +37,7 @@ impl Monitor {
         Self {
             ticks: bus.receiver(&ipc::TELEMETRY, None).expect("telemetry"),
             policies: bus.receiver(&ipc::POLICY, Some("general")).expect("policy"),
-            bus,
+            _node: bus,
         }
     }
 
@@ -98,8 +99,7 @@ fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoi
     while !left.is_empty() {
         assert!(
             killed.elapsed() < PATIENCE,
-            "still running {:?} after the launcher died",
-            left
+            "still running {left:?} after the launcher died"
         );
         left.retain(|(_, pid)| running(*pid));
         std::thread::sleep(Duration::from_millis(10));
@@ -144,7 +144,7 @@ fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoi
     let monitor = Monitor::connect(&run);
     let (tick, policy) = monitor.until_going(saved as u32 + 1);
     assert!(
-        policy.version as u64 >= saved,
+        u64::from(policy.version) >= saved,
         "the resumed learner publishes version {} after {saved} updates",
         policy.version
     );

@@ -11,18 +11,17 @@ use iceoryx2::prelude::ZeroCopySend;
 /// `[step][env]` order, then `envs` more whose `obs` is each env's bootstrap observation.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.RolloutHeader.v1")]
+#[type_name("lavatube.RolloutHeader.v2")]
 pub struct RolloutHeader {
     /// Chunk sequence number from 0; a gap means the learner missed chunks.
     pub chunk: u64,
     /// Environment steps the sim has taken in total, including this chunk.
     pub env_steps: u64,
-    /// Policy version that was acting when the chunk started.
-    pub policy_version: u32,
+    /// Decision steps per env in the chunk (T), and envs (N): the slice holds T × N
+    /// transitions, then N bootstrap observations. Each transition carries the version and
+    /// slot of the policy that acted.
     pub steps: u32,
     pub envs: u32,
-    /// Policy slot this chunk is meant for (a learner trains one slot).
-    pub slot: u32,
 }
 
 // ---- learner → sim: `policy` ----------------------------------------------------------------
@@ -308,11 +307,11 @@ mod tests {
     fn rollout_header_layout() {
         assert_eq!(
             (size_of::<RolloutHeader>(), align_of::<RolloutHeader>()),
-            (32, 8),
+            (24, 8),
             "{MSG}"
         );
-        assert_eq!(offset_of!(RolloutHeader, policy_version), 16, "{MSG}");
-        assert_eq!(offset_of!(RolloutHeader, slot), 28, "{MSG}");
+        assert_eq!(offset_of!(RolloutHeader, steps), 16, "{MSG}");
+        assert_eq!(offset_of!(RolloutHeader, envs), 20, "{MSG}");
     }
 
     #[test]

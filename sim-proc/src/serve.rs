@@ -97,6 +97,14 @@ impl Inbox {
                 );
                 continue;
             }
+            if h.slot != slot.index() as u32 {
+                tracing::error!(
+                    slot = slot.name(),
+                    header_slot = h.slot,
+                    "policy published for another slot refused; keeping the current one"
+                );
+                continue;
+            }
             let fresh = |weights: &[f32]| -> anyhow::Result<PolicyController> {
                 let policy = Policy::new(layout.clone(), weights.to_vec(), h.obs_clip)?;
                 // The general slot keeps the run seed's stream, so a one-learner run acts as
@@ -106,7 +114,8 @@ impl Inbox {
             };
             match &mut self.policies {
                 None => {
-                    self.policies = Some(PolicySet::new(*slot, fresh(sample.payload())?, h.version))
+                    self.policies =
+                        Some(PolicySet::new(*slot, fresh(sample.payload())?, h.version));
                 }
                 Some(policies) => match policies.get_mut(*slot) {
                     Some(c) if c.policy.layout() == &layout => {
@@ -123,6 +132,7 @@ impl Inbox {
                     from = was,
                     to = h.learner,
                     version = h.version,
+                    updates = h.updates,
                     "a new learner took over"
                 );
             }
@@ -223,7 +233,6 @@ pub fn serve(
     let started = Instant::now();
     let mut looked = started;
     'run: while env_steps < cfg.run.total_steps {
-        let chunk_version = inbox.version();
         chunk.clear();
         for _ in 0..t_steps {
             let wanted = switcher.update(&classes);
@@ -268,10 +277,8 @@ pub fn serve(
         let header = RolloutHeader {
             chunk: chunk_id,
             env_steps,
-            policy_version: chunk_version,
             steps: t_steps as u32,
             envs: n as u32,
-            slot: 0,
         };
         rollout_tx.send(header, &chunk)?;
         tele_tx.flush()?;

@@ -51,6 +51,8 @@ pub struct Summary {
     pub policy_version: u32,
     /// `null` unless envs see flat and rough ground.
     pub terrain_accuracy: Option<f64>,
+    /// Times the estimator refitted its mixture online.
+    pub estimator_refits: u32,
     pub pids: BTreeMap<String, u32>,
     /// Each process's last exit status as the OS words it, `null` if it never exited.
     pub exit: BTreeMap<String, Option<String>>,
@@ -82,6 +84,7 @@ impl Summary {
                 .map(|(mean, std)| MeanStd { mean, std }),
             policy_version: progress.tick.policy_version,
             terrain_accuracy: progress.terrain_accuracy(),
+            estimator_refits: progress.terrain.refits,
             pids: BTreeMap::new(),
             exit: BTreeMap::new(),
             restarts: BTreeMap::new(),

@@ -1,8 +1,8 @@
 //! What an evaluation drove, leg by leg, read from its telemetry, and the success and reach
 //! time of a cell of legs.
 
-use anyhow::Context;
 use common::config::AreaKind;
+use common::telemetry::TelemetryReader;
 use std::path::Path;
 
 /// Each leg an evaluation drove, by run (part), env and leg: its length in decision steps
@@ -27,7 +27,7 @@ impl Cell {
         let reach: Vec<f64> = all
             .iter()
             .flatten()
-            .map(|&t| t as f64 * decision_dt)
+            .map(|&t| f64::from(t) * decision_dt)
             .collect();
         let n = reach.len().max(1) as f64;
         let mean = reach.iter().sum::<f64>() / n;
@@ -66,12 +66,10 @@ pub(super) struct Evaluated {
 /// length runs from the env's first row after the previous ending to the row that ends it.
 /// Legs still running at the end are left out.
 pub(super) fn legs_in(path: &Path) -> anyhow::Result<Vec<Vec<Option<u32>>>> {
-    let mut reader =
-        csv::Reader::from_path(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut legs: Vec<Vec<Option<u32>>> = Vec::new();
     let mut length: Vec<u32> = Vec::new();
-    for (i, row) in reader.deserialize::<common::TelemetryRow>().enumerate() {
-        let row = row.with_context(|| format!("{}: row {}", path.display(), i + 1))?;
+    for row in TelemetryReader::open(path)? {
+        let (_, row) = row?;
         let (e, leg) = (row.env as usize, row.episode as usize);
         if e >= legs.len() {
             legs.resize(e + 1, Vec::new());
@@ -161,9 +159,9 @@ mod tests {
             e.to_string().contains("env 0 is on leg 0 after ending 1"),
             "{e}"
         );
-        // A file of another layout is refused, naming the row.
+        // A file of another layout is refused, naming the file and what it lacks.
         std::fs::write(&csv, "env,episode\n0,x\n").expect("write");
         let e = format!("{:#}", legs_in(&csv).expect_err("layout"));
-        assert!(e.contains("t.csv: row 1"), "{e}");
+        assert!(e.contains("t.csv: missing column"), "{e}");
     }
 }
