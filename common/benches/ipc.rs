@@ -28,7 +28,7 @@ where
             tx.send(H::default(), black_box(data)).expect("send");
             let s = rx.try_recv().expect("receive").expect("a sample");
             black_box(s.payload().len());
-        })
+        });
     });
     g.finish();
 }

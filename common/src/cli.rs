@@ -23,7 +23,7 @@ pub fn parse<C: clap::Parser>(args: impl IntoIterator<Item = OsString>) -> Resul
 
 /// clap value parser for a run id (see [`crate::ipc::validate_run_id`]).
 pub fn parse_run_id(s: &str) -> Result<String, String> {
-    crate::ipc::validate_run_id(s).map(|_| s.to_string())
+    crate::ipc::validate_run_id(s).map(|()| s.to_string())
 }
 
 /// How the launcher starts a process in a run.

@@ -12,7 +12,7 @@ fn read(clock: libc::clockid_t) -> Duration {
     // SAFETY: clock_gettime(2) writes one timespec through a valid pointer; the three clock
     // ids used here always exist on Linux, so it cannot fail.
     unsafe {
-        libc::clock_gettime(clock, &mut ts);
+        libc::clock_gettime(clock, &raw mut ts);
     }
     Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
 }

@@ -67,7 +67,7 @@ impl Rng {
     /// Uniform integer in [0, n); `n` must be positive.
     pub fn below(&mut self, n: usize) -> usize {
         // Lemire's multiply-shift; the bias is below 2^-32 for the sizes used here.
-        ((self.next_u64() as u128 * n as u128) >> 64) as usize
+        ((u128::from(self.next_u64()) * n as u128) >> 64) as usize
     }
 
     /// Standard normal sample (Box–Muller, no cached second value so the state stays 4 words).
@@ -115,7 +115,7 @@ mod tests {
             sn += z;
             sn2 += z * z;
         }
-        let n = n as f64;
+        let n = f64::from(n);
         assert!((su / n - 0.5).abs() < 0.005);
         assert!((sn / n).abs() < 0.01);
         assert!((sn2 / n - 1.0).abs() < 0.02);

@@ -37,7 +37,7 @@ fn em_fit(c: &mut Criterion) {
     for n in [1_000, 10_000, 100_000] {
         let data = mixture_data(n, 7);
         group.bench_with_input(BenchmarkId::from_parameter(n), &data, |b, data| {
-            b.iter(|| gmm::fit(black_box(data), &opts))
+            b.iter(|| gmm::fit(black_box(data), &opts));
         });
     }
     group.finish();
@@ -66,15 +66,16 @@ fn online(c: &mut Criterion) {
         b.iter(|| {
             i = (i + 1) & (stream.len() - 1);
             black_box(est.observe(i % ENVS, stream[i]))
-        })
+        });
     });
-    let mut est = OnlineEstimator::new(&Default::default(), ENVS, 1).expect("estimator");
+    let mut est = OnlineEstimator::new(&common::config::EstimatorConfig::default(), ENVS, 1)
+        .expect("estimator");
     let mut i = 0usize;
     group.bench_function("observe_with_refits", |b| {
         b.iter(|| {
             i = (i + 1) & (stream.len() - 1);
             black_box(est.observe(i % ENVS, stream[i]))
-        })
+        });
     });
     group.finish();
 }

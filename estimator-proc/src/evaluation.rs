@@ -91,7 +91,8 @@ fn build_streams(series: &[Series], splice: bool) -> Vec<Stream> {
     let (flat, rough): (Vec<&Series>, Vec<&Series>) =
         series.iter().partition(|s| s.area == AreaKind::Flat);
     if !splice || flat.is_empty() || rough.is_empty() {
-        let mut by_env: std::collections::BTreeMap<u32, Stream> = Default::default();
+        let mut by_env: std::collections::BTreeMap<u32, Stream> =
+            std::collections::BTreeMap::default();
         for s in series {
             by_env.entry(s.env).or_default().push(s);
         }

@@ -224,7 +224,7 @@ impl Gmm {
         for &x in data {
             let m = self.joint_log_max(x, &mut l);
             let mut total = 0.0;
-            for v in l.iter_mut() {
+            for v in &mut l {
                 *v = (*v - m).exp();
                 total += *v;
             }

@@ -210,7 +210,7 @@ mod tests {
         );
         assert!(RollingPath::new(1).is_err());
         // Many laps: the running sum stays exact.
-        let walk: Vec<[f64; 2]> = (0..10_000).map(|i| [0.1 * i as f64, 0.0]).collect();
+        let walk: Vec<[f64; 2]> = (0..10_000).map(|i| [0.1 * f64::from(i), 0.0]).collect();
         let last = *rolling_path(&walk, 70)
             .expect("window")
             .last()

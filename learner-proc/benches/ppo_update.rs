@@ -113,7 +113,7 @@ fn ppo_update(c: &mut Criterion<ThreadCpuTime>) {
                 format!("mb{minibatch}"),
             );
             group.bench_function(id, |b| {
-                b.iter(|| black_box(learner.update(&batch).expect("update")))
+                b.iter(|| black_box(learner.update(&batch).expect("update")));
             });
         }
     }

@@ -121,7 +121,7 @@ impl NetShape {
             match (block.role, orthogonal_init) {
                 (Role::LogStd, _) => out.fill(init_log_std),
                 (Role::Weight { gain }, true) => {
-                    out.copy_from_slice(&orthogonal(block.rows, block.cols, gain, rng))
+                    out.copy_from_slice(&orthogonal(block.rows, block.cols, gain, rng));
                 }
                 (Role::Bias { .. }, true) => out.fill(0.0),
                 (Role::Weight { .. }, false) => uniform_fan_in(out, block.rows, rng),

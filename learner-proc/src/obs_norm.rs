@@ -108,7 +108,7 @@ mod tests {
         let mut rms = RunningMeanStd::new(3);
         let mut at = 0;
         for size in [1, 7, 100, 392, 500] {
-            rms.update(data[at..at + size].iter().map(|r| r.as_slice()));
+            rms.update(data[at..at + size].iter().map(<[f32; 3]>::as_slice));
             at += size;
         }
         assert_eq!(at, data.len());

@@ -160,10 +160,7 @@ fn start(
         let said = from(&learner, path);
         return Ok((learner, said));
     }
-    if crate::checkpoint::list(ckpt_dir)
-        .map(|l| !l.is_empty())
-        .unwrap_or(false)
-    {
+    if crate::checkpoint::list(ckpt_dir).is_ok_and(|l| !l.is_empty()) {
         let (learner, path) = Learner::resume(cfg, ckpt_dir)?;
         let mut said = from(&learner, &path);
         if let Some(init) = &args.init_from {

@@ -69,7 +69,7 @@ fn decision_steps(c: &mut Criterion) {
                     row.wall += elapsed;
                     row.cpu += common::clock::process_cpu().saturating_sub(cpu);
                     elapsed
-                })
+                });
             });
             rows.push(row);
         }

@@ -36,7 +36,7 @@ impl Controller for RandomController {
         }
         let (cmd, left) = &mut self.held[env];
         if *left == 0 {
-            let l = self.limit as f64;
+            let l = f64::from(self.limit);
             *cmd = [self.rng.range(-l, l) as f32, self.rng.range(-l, l) as f32];
             *left = self.hold;
         }

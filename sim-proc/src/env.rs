@@ -39,7 +39,7 @@ impl SharedTerrain {
 /// Unity-convention Euler angles (SPEC S2): `q = Ry·Rx·Rz`, returned as (θx, θy, θz).
 pub fn unity_euler(q: Quat) -> [f64; 3] {
     let (y, x, z) = q.to_euler(EulerRot::YXZ);
-    [x as f64, y as f64, z as f64]
+    [f64::from(x), f64::from(y), f64::from(z)]
 }
 
 /// Pose of the chassis as the task sees it.
@@ -57,7 +57,7 @@ impl PoseState {
     }
 
     pub fn is_finite(&self) -> bool {
-        self.pos.iter().all(|v| v.is_finite()) && self.rot.is_finite()
+        self.pos.iter().all(rapier3d::math::ComplexField::is_finite) && self.rot.is_finite()
     }
 }
 
@@ -165,7 +165,7 @@ impl Env {
         let t = body.translation();
         let rot = *body.rotation();
         PoseState {
-            pos: [t.x as f64, t.y as f64, t.z as f64],
+            pos: [f64::from(t.x), f64::from(t.y), f64::from(t.z)],
             rot,
             euler: unity_euler(rot),
         }
@@ -175,7 +175,7 @@ impl Env {
     pub fn wheel_centres(&self) -> [[f64; 3]; 2] {
         self.robot.wheel_bodies.map(|b| {
             let t = self.world.bodies[b].translation();
-            [t.x as f64, t.y as f64, t.z as f64]
+            [f64::from(t.x), f64::from(t.y), f64::from(t.z)]
         })
     }
 
@@ -368,7 +368,8 @@ mod tests {
         let info = bad.step([1.0, 1.0]);
         assert_eq!(info.ending, Some(Ending::Fault));
         assert!(
-            info.ending.is_some_and(|e| e.truncated()),
+            info.ending
+                .is_some_and(super::super::task::Ending::truncated),
             "a fault truncates, it does not terminate"
         );
         assert_eq!((info.faults, info.reward), (1, 0.0));
@@ -377,7 +378,11 @@ mod tests {
         let p = bad.pose();
         assert!(p.is_finite() && cfg.terrain.flat_area.contains(p.pos[0], p.pos[2], 0.0));
         assert_eq!(bad.step([1.0, 1.0]).faults, 1);
-        assert!(bad.observe().iter().all(|v| v.is_finite()));
+        assert!(
+            bad.observe()
+                .iter()
+                .all(rapier3d::math::ComplexField::is_finite)
+        );
         // The other env never noticed.
         assert_eq!(good.step([1.0, 1.0]).faults, 0);
     }

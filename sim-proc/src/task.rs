@@ -15,7 +15,7 @@ pub fn max_episode_steps(cfg: &TaskConfig, id: f64) -> u32 {
 
 /// SPEC S3: the distance limit PED = (ID + 2Δ) − kΔ after `k` Δ-approaches.
 pub fn penalty_distance(cfg: &TaskConfig, id: f64, k: u32) -> f64 {
-    id + cfg.ped_slack * cfg.delta - k as f64 * cfg.delta
+    id + cfg.ped_slack * cfg.delta - f64::from(k) * cfg.delta
 }
 
 /// SPEC S4: truncates (not rounds) a non-negative distance to one decimal.
@@ -36,14 +36,14 @@ pub fn circles(cfg: &TaskConfig, id: f64) -> u32 {
 
 /// SPEC S4: BR = 100 + 10·RD with RD = 15 − Σ_{k=1..N} k.
 pub fn base_reward(cfg: &TaskConfig, id: f64) -> f64 {
-    let n = circles(cfg, id) as f64;
+    let n = f64::from(circles(cfg, id));
     100.0 + 10.0 * (15.0 - n * (n + 1.0) / 2.0)
 }
 
 /// SPEC S4: FinalReward = BR + OR − TP, OR = 50·mean(cos θx), TP = steps / MES.
 pub fn final_reward(cfg: &TaskConfig, id: f64, mean_cos_pitch: f64, steps: u32) -> f64 {
-    let mes = max_episode_steps(cfg, id) as f64;
-    base_reward(cfg, id) + 50.0 * mean_cos_pitch - steps as f64 / mes
+    let mes = f64::from(max_episode_steps(cfg, id));
+    base_reward(cfg, id) + 50.0 * mean_cos_pitch - f64::from(steps) / mes
 }
 
 /// How an episode ended on a step.
@@ -140,7 +140,7 @@ impl Episode {
         let mut reward = 0.0;
         // SPEC S4: each circle jΔ < ID pays once, the first time the distance drops below it.
         for j in 1..=5u32 {
-            let radius = j as f64 * cfg.delta;
+            let radius = f64::from(j) * cfg.delta;
             let bit = 1u8 << (j - 1);
             if radius < self.initial_distance && d < radius && self.paid & bit == 0 {
                 self.paid |= bit;
@@ -154,7 +154,7 @@ impl Episode {
         // SPEC S3 extension: a stall ends the episode as a failure, terminal like PED's.
         let stalled = cfg.stall_steps > 0 && self.steps - self.spot_step >= cfg.stall_steps;
         let ending = if d < cfg.delta {
-            let mean_cos = self.sum_cos_pitch / self.steps as f64;
+            let mean_cos = self.sum_cos_pitch / f64::from(self.steps);
             reward += final_reward(cfg, self.initial_distance, mean_cos, self.steps);
             Some(Ending::Success)
         } else if out_or_tipped {

@@ -127,7 +127,7 @@ impl Terrain {
     }
 
     fn sample(&self, i: usize, j: usize) -> f64 {
-        self.heights[i.min(self.rows - 1) + j.min(self.cols - 1) * self.rows] as f64
+        f64::from(self.heights[i.min(self.rows - 1) + j.min(self.cols - 1) * self.rows])
     }
 
     /// Ground height at `(x, z)`, following parry's triangulation of each cell so it equals
@@ -256,7 +256,7 @@ fn read_png16(path: &Path, height_scale: f64) -> Result<(usize, usize, Vec<f64>)
     let heights = buf
         .chunks_exact(2)
         .take(rows * cols)
-        .map(|b| u16::from_be_bytes([b[0], b[1]]) as f64 / u16::MAX as f64 * height_scale)
+        .map(|b| f64::from(u16::from_be_bytes([b[0], b[1]])) / f64::from(u16::MAX) * height_scale)
         .collect();
     Ok((rows, cols, heights))
 }
@@ -323,7 +323,7 @@ mod tests {
             }
             x += step;
         }
-        (s / n as f64).sqrt()
+        (s / f64::from(n)).sqrt()
     }
 
     #[test]
@@ -364,7 +364,7 @@ mod tests {
         );
         // SPEC S1: the flat area's relief stays within its peak height, and is not a plane.
         let hs: Vec<f64> = (0..100)
-            .map(|k| a.height_at(-2.0 + 0.02 * k as f64, 0.0))
+            .map(|k| a.height_at(-2.0 + 0.02 * f64::from(k), 0.0))
             .collect();
         assert!(hs.iter().all(|h| h.abs() <= cfg.flat_relief + 1e-6));
         assert!(hs.iter().any(|h| h.abs() > 0.1 * cfg.flat_relief));

@@ -87,7 +87,7 @@ fn opposite_commands_turn_at_the_kinematic_yaw_rate() {
     let poses = drive_const([-omega, omega], 1.0, 3.0);
     let cfg = SimConfig::default().robot;
     // Right wheel forward, left backward: yaw rate 2·ω·r / track, counter-clockwise about +Y.
-    let expected = 2.0 * omega as f64 * cfg.wheel_radius / cfg.track_width;
+    let expected = 2.0 * f64::from(omega) * cfg.wheel_radius / cfg.track_width;
     // Unwrap the yaw over the last 2 s (skip 1 s of spin-up).
     let dt = SimConfig::default().physics_dt;
     let yaws: Vec<f64> = poses.iter().map(|(_, q)| unity_euler(*q)[1]).collect();
@@ -165,7 +165,7 @@ fn mean_rolling_std(cfg: &SimConfig, ticks: u64) -> f64 {
             n += 1;
         }
     }
-    sum / n as f64
+    sum / f64::from(n)
 }
 
 #[test]

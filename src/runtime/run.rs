@@ -160,7 +160,7 @@ impl<'a> Run<'a> {
     fn specs(&self) -> Vec<Spec> {
         let (cfg, sup) = (self.cfg, &self.cfg.supervise);
         let join = |extra: &[&str]| -> Vec<String> {
-            let mut v: Vec<String> = extra.iter().map(|s| s.to_string()).collect();
+            let mut v: Vec<String> = extra.iter().map(std::string::ToString::to_string).collect();
             v.extend([
                 "--config".into(),
                 self.cfg_path.display().to_string(),

@@ -138,7 +138,7 @@ impl Default for RunConfig {
             out_dir: PathBuf::from("runs"),
             learners: vec![PolicySlot::General],
             init_from: None,
-            frozen: Default::default(),
+            frozen: std::collections::BTreeMap::default(),
             telemetry_csv: false,
         }
     }

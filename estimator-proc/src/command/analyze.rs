@@ -110,7 +110,7 @@ fn draw_figures(
             written.push(FIG_DISTRIBUTION.to_string());
         }
         Err(e @ (EstimatorError::NoWindows { .. } | EstimatorError::AllStationary { .. })) => {
-            tracing::warn!(%e, "skipping {FIG_DISTRIBUTION}")
+            tracing::warn!(%e, "skipping {FIG_DISTRIBUTION}");
         }
         Err(e) => return Err(e.into()),
     }
@@ -123,7 +123,7 @@ fn draw_figures(
                 Err(
                     e @ (EstimatorError::NoWindows { .. } | EstimatorError::AllStationary { .. }),
                 ) => {
-                    tracing::warn!(%e, "confusion heatmap skipped")
+                    tracing::warn!(%e, "confusion heatmap skipped");
                 }
                 Err(e) => return Err(anyhow::Error::from(e).context(format!("window {w}"))),
             },

@@ -81,7 +81,7 @@ fn a_robot_that_stops_on_rough_ground_keeps_its_rough_estimate() {
         // Both drive at 1 cm per tick; env 0 on flat, env 1 on rough ground.
         let mut last = [None, None];
         for t in 0..1_500 {
-            let x = 0.01 * t as f64;
+            let x = 0.01 * f64::from(t);
             let a = est.observe_at(0, 0.02 * rng.normal(), Some([x, 0.0]));
             let b = est.observe_at(1, 0.08 * rng.normal(), Some([x, 1.0]));
             last = [a.expect("observe").class, b.expect("observe").class];
@@ -90,7 +90,7 @@ fn a_robot_that_stops_on_rough_ground_keeps_its_rough_estimate() {
         let pooled = est.pool.values.len();
         // Env 1 wedges on a bump: pitch and position frozen (a hair of jitter).
         for t in 0..300 {
-            let x = 0.01 * (1_500 + t) as f64;
+            let x = 0.01 * f64::from(1_500 + t);
             est.observe_at(0, 0.02 * rng.normal(), Some([x, 0.0]))
                 .expect("observe");
             let jitter = 1e-5 * rng.normal();
@@ -127,7 +127,7 @@ fn labels_stay_stable_across_refits_under_drift() {
     let mut rng = common::Rng::new(4);
     let mut means = Vec::new();
     for t in 0..3_000 {
-        let scale = 1.0 + t as f64 / 1_500.0;
+        let scale = 1.0 + f64::from(t) / 1_500.0;
         let a = est
             .observe(0, 0.02 * scale * rng.normal())
             .expect("observe");
@@ -166,7 +166,7 @@ fn hmm_beats_the_raw_classifier_at_a_short_window() {
             filtered += usize::from(a.class == Some(0)) + usize::from(b.class == Some(1));
         }
     }
-    let (raw, filtered) = (raw as f64 / n as f64, filtered as f64 / n as f64);
+    let (raw, filtered) = (raw as f64 / f64::from(n), filtered as f64 / f64::from(n));
     assert!(filtered > raw + 0.05, "filtered {filtered} raw {raw}");
 }
 

@@ -129,7 +129,7 @@ fn policy_weights_round_trip_through_the_layout() {
     learner.obs_norm.update(
         [[0.5f32; OBS_DIM], [1.5; OBS_DIM]]
             .iter()
-            .map(|r| r.as_slice()),
+            .map(<[f32; 10]>::as_slice),
     );
     let w = learner.policy_weights();
     let layout = learner.layout().clone();

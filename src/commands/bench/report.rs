@@ -34,7 +34,7 @@ impl Machine {
                 .map(|(_, v)| v.trim().to_string())
         });
         Self {
-            cpus: std::thread::available_parallelism().map_or(1, |n| n.get()),
+            cpus: std::thread::available_parallelism().map_or(1, std::num::NonZero::get),
             cpu_model,
             load_1m_start: load_1m(),
             load_1m_end: None,

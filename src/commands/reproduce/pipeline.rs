@@ -67,7 +67,7 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
             .estimator
             .windows
             .iter()
-            .map(|w| w.to_string())
+            .map(std::string::ToString::to_string)
             .collect::<Vec<_>>()
             .join(",");
         let status = Command::new(runtime::locate("estimator-proc")?)

@@ -54,7 +54,7 @@ pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
                     .map(|c| Cell::of(&c.legs, p.base.sim.decision_dt()))
             })
             .collect();
-        let success: Vec<f64> = cells.iter().map(|c| c.success_pct()).collect();
+        let success: Vec<f64> = cells.iter().map(super::legs::Cell::success_pct).collect();
         let reach: Vec<f64> = cells
             .iter()
             .filter(|c| c.successes > 0)
@@ -144,7 +144,8 @@ pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
     }
     md +=
         "\n## Table 3: accuracy by window\n\n| window | accuracy % | paper % |\n|---:|---:|---:|\n";
-    let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> = Default::default();
+    let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> =
+        std::collections::BTreeMap::default();
     for (p, _) in runs {
         let path = p.stage_dir("d-analysis").join("results.json");
         let json: serde_json::Value = serde_json::from_str(

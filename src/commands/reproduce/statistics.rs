@@ -47,7 +47,7 @@ impl Paired {
         let differences: Vec<f64> = pairs.iter().map(|&(a, b)| pct(a) - pct(b)).collect();
         let both: Vec<[f64; 2]> = pairs
             .iter()
-            .filter_map(|&(a, b)| Some([a? as f64 * decision_dt, b? as f64 * decision_dt]))
+            .filter_map(|&(a, b)| Some([f64::from(a?) * decision_dt, f64::from(b?) * decision_dt]))
             .collect();
         let sooner: Vec<f64> = both.iter().map(|[a, b]| b - a).collect();
         let mean = |xs: Vec<f64>| mean_ci(&xs).0;
