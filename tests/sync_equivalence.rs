@@ -13,28 +13,28 @@ use sim_proc::{Fleet, SharedTerrain};
 
 mod support;
 
-/// The in-process loop: act for T steps, update, hand the new weights to the actor.
+/// The in-process loop: act for T steps, update, hand the new weights to the driver.
 fn train_in_process(cfg: &Config) -> Learner {
     let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
     let mut learner = Learner::new(cfg, layout.clone(), cfg.run.seed).expect("learner");
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain).expect("terrain"));
-    let mut batch = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
+    let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
     let policy =
         Policy::new(layout, learner.policy_weights(), cfg.ppo.obs_clip as f32).expect("policy");
     let ctrl = PolicyController::new(policy, true, cfg.run.seed);
-    let mut pool = PolicySet::new(PolicySlot::General, ctrl, learner.policy_version());
-    let mut actor = Driver::new(&batch);
-    let (n, t) = (batch.len(), cfg.ppo.rollout_steps(batch.len()));
+    let mut policies = PolicySet::new(PolicySlot::General, ctrl, learner.policy_version());
+    let mut driver = Driver::new(&fleet);
+    let (n, t) = (fleet.len(), cfg.ppo.rollout_steps(fleet.len()));
     let wanted = vec![PolicySlot::General; n];
     let mut chunk = Vec::new();
     let mut env_steps = 0;
     while env_steps < cfg.run.total_steps {
         chunk.clear();
         for _ in 0..t {
-            actor.tick(&mut batch, &mut pool, &wanted, &[], &mut chunk);
+            driver.tick(&mut fleet, &mut policies, &wanted, &[], &mut chunk);
         }
         env_steps += (t * n) as u64;
-        actor.bootstrap(&mut chunk);
+        driver.bootstrap(&mut chunk);
         let (transitions, boot) = chunk.split_at(t * n);
         let bootstrap_obs: Vec<[f32; OBS_DIM]> = boot.iter().map(|b| b.obs).collect();
         learner
@@ -44,12 +44,14 @@ fn train_in_process(cfg: &Config) -> Learner {
                 episodes: &[],
             })
             .expect("update");
-        let general = pool.get_mut(PolicySlot::General).expect("general policy");
+        let general = policies
+            .get_mut(PolicySlot::General)
+            .expect("general policy");
         general
             .policy
             .set_weights(&learner.policy_weights())
             .expect("same layout");
-        pool.set_version(PolicySlot::General, learner.policy_version());
+        policies.set_version(PolicySlot::General, learner.policy_version());
     }
     learner
 }

@@ -36,7 +36,7 @@ pub struct RunConfig {
     pub telemetry_csv: bool,
 }
 
-/// A policy slot of the sim's pool (DESIGN §5): what a learner fills and an env acts with.
+/// A policy slot of the sim's policy set (DESIGN §5): what a learner fills and an env acts with.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum PolicySlot {
