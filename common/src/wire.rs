@@ -29,7 +29,7 @@ pub struct RolloutHeader {
 /// Header of a policy message; the slice is the flat actor in `crate::policy`'s layout.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.PolicyHeader.v2")]
+#[type_name("lavatube.PolicyHeader.v3")]
 pub struct PolicyHeader {
     /// Per slot, continued across learner restarts and swaps (the new learner resumes the
     /// newest checkpoint, which is taken before each publish).
@@ -51,7 +51,9 @@ pub struct PolicyHeader {
     /// whose current policy a waiting sync-mode sim takes instead of waiting for a chunk it
     /// may never have received.
     pub learner: u32,
-    pub _reserved: u32,
+    /// Checkpoint and metrics writes this learner process could not make (a full disk):
+    /// training went on, and the launcher reports the count in `summary.json`.
+    pub write_failures: u32,
 }
 
 impl PolicyHeader {
@@ -72,7 +74,7 @@ impl PolicyHeader {
             env_steps: 0,
             chunks_seen: 0,
             learner: std::process::id(),
-            _reserved: 0,
+            write_failures: 0,
         }
     }
 
@@ -324,6 +326,7 @@ mod tests {
         assert_eq!(offset_of!(PolicyHeader, hidden), 20, "{MSG}");
         assert_eq!(offset_of!(PolicyHeader, chunks_seen), 56, "{MSG}");
         assert_eq!(offset_of!(PolicyHeader, learner), 64, "{MSG}");
+        assert_eq!(offset_of!(PolicyHeader, write_failures), 68, "{MSG}");
         assert_eq!(offset_of!(PolicyHeader, obs_clip), 36, "{MSG}");
         assert_eq!(offset_of!(PolicyHeader, updates), 40, "{MSG}");
         let l = PolicyLayout::new(10, &[128, 64], 2);

@@ -28,6 +28,7 @@ pub mod net;
 pub mod obs_norm;
 pub mod ppo;
 pub mod serve;
+mod writes;
 
 use std::io::Write;
 

@@ -9,6 +9,7 @@
 //! The run's own checkpoints beat `--init-from` so that a learner restarted with the same
 //! command line continues its run instead of warm-starting it again.
 
+use crate::writes::Writes;
 use crate::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout, curves};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
@@ -125,6 +126,7 @@ fn publish(
     slot: PolicySlot,
     obs_clip: f64,
     chunks_seen: u64,
+    write_failures: u32,
 ) -> Result<(), LearnerError> {
     let c = learner.counters();
     let mut h = PolicyHeader::new(
@@ -136,6 +138,7 @@ fn publish(
     h.updates = c.update;
     h.env_steps = c.global_step;
     h.chunks_seen = chunks_seen;
+    h.write_failures = write_failures;
     tx.send(h, &learner.policy_weights())?;
     Ok(())
 }
@@ -246,7 +249,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         Some(args.slot.name()),
         learner.layout().len(),
     )?;
-    publish(&policy_tx, &learner, args.slot, cfg.ppo.obs_clip, 0)?;
+    publish(&policy_tx, &learner, args.slot, cfg.ppo.obs_clip, 0, 0)?;
     tracing::info!(
         version = learner.policy_version(),
         params = learner.layout().len(),
@@ -257,15 +260,17 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     let (mut next_chunk, mut missed) = (None::<u64>, 0u64);
     let mut lags = LagHistogram::default();
     // Every consumed chunk is answered with a policy, so a sync-mode sim never waits in vain.
-    let answer = |learner: &Learner, chunks_seen: u64| {
+    let answer = |learner: &Learner, chunks_seen: u64, writes: &Writes| {
         publish(
             &policy_tx,
             learner,
             args.slot,
             cfg.ppo.obs_clip,
             chunks_seen,
+            writes.failures(),
         )
     };
+    let mut writes = Writes::default();
     let mut done = false;
     while !done && !bus.stop_requested(&control) {
         policy_tx.update_connections()?;
@@ -293,7 +298,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
             next_chunk = Some(h.chunk + 1);
             done = h.env_steps >= cfg.run.total_steps;
             if args.frozen {
-                answer(&learner, h.chunk + 1)?;
+                answer(&learner, h.chunk + 1, &writes)?;
                 continue;
             }
             let (transitions, boot) = data.split_at(t * n);
@@ -311,18 +316,18 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 // policy is published anyway so a waiting sync-mode sim goes on.
                 Err(e @ (LearnerError::Rollout { .. } | LearnerError::NonFinite { .. })) => {
                     tracing::warn!(chunk = h.chunk, error = %e, "chunk not trained on");
-                    answer(&learner, h.chunk + 1)?;
+                    answer(&learner, h.chunk + 1, &writes)?;
                     continue;
                 }
                 Err(e) => return Err(e),
             };
-            log.append(&m)?;
+            writes.attempt("metrics", log.append(&m));
             // Checkpoint before publishing: every published version can be resumed, so a
             // learner restarted after kill -9 continues the version sequence.
             if learner.checkpoint_due() {
-                learner.save_checkpoint(&ckpt_dir)?;
+                writes.attempt("checkpoint", learner.save_checkpoint(&ckpt_dir));
             }
-            answer(&learner, h.chunk + 1)?;
+            answer(&learner, h.chunk + 1, &writes)?;
             if learner.checkpoint_due() {
                 figure.redraw(log.path(), false);
             }
@@ -340,13 +345,14 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         }
     }
     if !args.frozen {
-        learner.save_checkpoint(&ckpt_dir)?;
+        writes.attempt("checkpoint", learner.save_checkpoint(&ckpt_dir));
     }
     figure.redraw(log.path(), true);
     tracing::info!(
         updates = learner.counters().update,
         version = learner.policy_version(),
         chunks_missed = missed,
+        write_failures = writes.failures(),
         "learner done; policy lag of the transitions received (versions: share): {}",
         lags.summary()
     );

@@ -9,7 +9,7 @@ use crate::error::UserError;
 use anyhow::Context;
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, SwapServer};
-use common::wire::{EnvTick, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
+use common::wire::{EnvTick, PolicyHeader, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
 use common::{Config, run_dir};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -224,9 +224,13 @@ impl<'a> Run<'a> {
         );
         let bus = Bus::connect(&self.id, LAUNCHER_NODE)?;
         let control = bus.control_notifier()?;
+        let learners = self.cfg.run.learners.iter();
         let ports = Ports {
             telemetry: bus.receiver(&ipc::TELEMETRY, None)?,
             terrain: bus.receiver(&ipc::TERRAIN, None)?,
+            policies: learners
+                .map(|&slot| Ok((slot, bus.receiver(&ipc::POLICY, Some(slot.name()))?)))
+                .collect::<anyhow::Result<_>>()?,
             swap: bus.swap_server()?,
         };
         let grace = Duration::from_millis(self.cfg.supervise.grace_ms);
@@ -303,6 +307,12 @@ impl<'a> Run<'a> {
         std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("{}", summary.line(&self.dir));
+        for (learner, n) in summary.write_failures.iter().filter(|(_, n)| **n > 0) {
+            eprintln!(
+                "lavatube: {learner}: {n} checkpoint or metrics write(s) failed (disk full?); see {}",
+                run_dir::log_file(&self.dir, learner).display()
+            );
+        }
         if let Some(f) = failed {
             anyhow::bail!("{f}; logs in {}", self.logs.display());
         }
@@ -317,6 +327,8 @@ impl<'a> Run<'a> {
 struct Ports {
     telemetry: Receiver<EnvTick, TickHeader>,
     terrain: Receiver<TerrainEstimate, TerrainHeader>,
+    /// Each training learner's policies, for the writes it could not make.
+    policies: Vec<(PolicySlot, Receiver<f32, PolicyHeader>)>,
     swap: SwapServer,
 }
 
@@ -371,6 +383,13 @@ impl Supervision<'_, '_> {
         }
         if let Some(s) = ports.terrain.latest()? {
             self.progress.terrain = *s.user_header();
+        }
+        for (slot, rx) in &ports.policies {
+            if let Some(s) = rx.latest()? {
+                let h = s.user_header();
+                let w = self.progress.write_failures.entry(*slot).or_default();
+                w.saw(h.learner, h.write_failures);
+            }
         }
         let p = &self.progress;
         let bar = &self.run.bar;

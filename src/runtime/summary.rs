@@ -1,19 +1,46 @@
 //! What a run reports: the progress it shows while it runs, read from its own telemetry and
 //! terrain services, and the typed [`Summary`] behind `summary.json` when it ends.
 
+use common::config::PolicySlot;
 use common::episode::EpisodeStats;
 use common::wire::{TerrainHeader, TickHeader};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
-/// What the run's telemetry and terrain services said last.
-#[derive(Debug, Default, Clone, Copy)]
+/// What the run's telemetry, terrain and policy services said last.
+#[derive(Debug, Default, Clone)]
 pub struct Progress {
     pub tick: TickHeader,
     pub terrain: TerrainHeader,
     /// Envs see flat and rough ground (both areas, or the mixed course): only then does
     /// scoring a two-class terrain estimate mean anything.
     pub both_areas: bool,
+    /// Per policy slot, the learners' failed checkpoint and metrics writes.
+    pub write_failures: BTreeMap<PolicySlot, WriteFailures>,
+}
+
+/// One slot's failed writes, summed over the learner processes that served it (each counts
+/// its own from 0).
+#[derive(Debug, Default, Clone, Copy)]
+pub struct WriteFailures {
+    learner: u32,
+    current: u32,
+    earlier: u32,
+}
+
+impl WriteFailures {
+    /// Takes the count a policy of learner process `learner` carried.
+    pub fn saw(&mut self, learner: u32, failures: u32) {
+        if learner != self.learner {
+            self.earlier += self.current;
+            self.learner = learner;
+        }
+        self.current = failures;
+    }
+
+    pub fn total(&self) -> u32 {
+        self.earlier + self.current
+    }
 }
 
 impl Progress {
@@ -58,6 +85,9 @@ pub struct Summary {
     pub exit: BTreeMap<String, Option<String>>,
     pub restarts: BTreeMap<String, u32>,
     pub learner_swaps: u32,
+    /// Per learner, checkpoint and metrics writes that failed (a full disk); training went
+    /// on and the previous checkpoint stayed whole.
+    pub write_failures: BTreeMap<String, u32>,
 }
 
 impl Summary {
@@ -89,6 +119,11 @@ impl Summary {
             exit: BTreeMap::new(),
             restarts: BTreeMap::new(),
             learner_swaps,
+            write_failures: progress
+                .write_failures
+                .iter()
+                .map(|(slot, w)| (slot.learner_name().to_string(), w.total()))
+                .collect(),
         }
     }
 
@@ -129,6 +164,16 @@ mod tests {
         let (mean, std) = p.episodes().reach_seconds(0.1).expect("successes");
         assert!((mean - 1.5).abs() < 1e-12 && (std - 0.5).abs() < 1e-12);
         assert_eq!(Progress::default().episodes().reach_seconds(0.1), None);
+    }
+
+    #[test]
+    fn write_failures_add_up_over_the_learner_processes_of_a_slot() {
+        let mut w = WriteFailures::default();
+        w.saw(10, 1);
+        w.saw(10, 3);
+        assert_eq!(w.total(), 3, "one process reports its running count");
+        w.saw(11, 2);
+        assert_eq!(w.total(), 5, "a restarted learner counts from 0 again");
     }
 
     #[test]
