@@ -13,6 +13,7 @@ pub mod logging;
 #[cfg(feature = "plot")]
 pub mod plot;
 pub mod policy;
+pub mod refusals;
 pub mod rng;
 pub mod rollout;
 pub mod run_dir;

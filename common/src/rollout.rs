@@ -1,6 +1,7 @@
 //! Rollout transitions: what the sim records per env and decision step, and the learner
 //! trains on. The same `repr(C)` record is the element of the `rollout` service's slice.
 
+use crate::wire::RolloutHeader;
 use crate::{ACT_DIM, OBS_DIM};
 use iceoryx2::prelude::ZeroCopySend;
 
@@ -60,10 +61,88 @@ impl Default for Transition {
     }
 }
 
+impl Transition {
+    /// Every float (observations, action, log-prob, reward) is finite.
+    pub fn is_finite(&self) -> bool {
+        self.obs
+            .iter()
+            .chain(&self.action)
+            .chain(&self.final_obs)
+            .chain([&self.logprob, &self.reward])
+            .all(|x| x.is_finite())
+    }
+}
+
+/// Why a rollout chunk with header `h` and slice `data` must be refused, if it must: a
+/// slice that is not `steps × envs` transitions plus `envs` bootstrap observations, an env
+/// id outside the chunk's envs, a slot that is no policy slot, or a non-finite value. The
+/// sim never sends such a chunk; a receiver drops one and goes on (DESIGN §2).
+pub fn chunk_refusal(h: &RolloutHeader, data: &[Transition]) -> Option<&'static str> {
+    let (t, n) = (h.steps as usize, h.envs as usize);
+    if n == 0 || data.len() != t * n + n {
+        return Some("wrong chunk size");
+    }
+    let (transitions, boot) = data.split_at(t * n);
+    if transitions.iter().any(|x| x.env as usize >= n) {
+        return Some("env id out of range");
+    }
+    if transitions.iter().any(|x| x.slot > 2) {
+        return Some("unknown policy slot");
+    }
+    if !transitions.iter().all(Transition::is_finite)
+        || !boot.iter().all(|b| b.obs.iter().all(|x| x.is_finite()))
+    {
+        return Some("non-finite value");
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use std::mem::{align_of, offset_of, size_of};
+
+    #[test]
+    fn hostile_chunks_are_refused_by_kind() {
+        // 2 steps × 2 envs, then 2 bootstrap entries.
+        let h = RolloutHeader {
+            steps: 2,
+            envs: 2,
+            ..RolloutHeader::default()
+        };
+        let good: Vec<Transition> = (0..6)
+            .map(|i| Transition {
+                env: i % 2,
+                ..Transition::default()
+            })
+            .collect();
+        assert_eq!(chunk_refusal(&h, &good), None);
+        assert_eq!(chunk_refusal(&h, &good[..5]), Some("wrong chunk size"));
+        let no_envs = RolloutHeader { envs: 0, ..h };
+        assert_eq!(chunk_refusal(&no_envs, &[]), Some("wrong chunk size"));
+        let mut bad = good.clone();
+        bad[3].env = 2;
+        assert_eq!(chunk_refusal(&h, &bad), Some("env id out of range"));
+        let mut bad = good.clone();
+        bad[0].slot = 3;
+        assert_eq!(chunk_refusal(&h, &bad), Some("unknown policy slot"));
+        for poison in [f32::NAN, f32::INFINITY] {
+            let mut bad = good.clone();
+            bad[1].reward = poison;
+            assert_eq!(chunk_refusal(&h, &bad), Some("non-finite value"));
+            let mut bad = good.clone();
+            bad[5].obs[3] = poison;
+            assert_eq!(
+                chunk_refusal(&h, &bad),
+                Some("non-finite value"),
+                "bootstrap"
+            );
+        }
+        // A bootstrap entry carries only its observation: its other fields are not read.
+        let mut boot_env = good.clone();
+        boot_env[4].env = 99;
+        assert_eq!(chunk_refusal(&h, &boot_env), None);
+    }
 
     #[test]
     fn transition_layout_is_pinned() {

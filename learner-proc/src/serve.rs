@@ -13,9 +13,10 @@ use crate::writes::Writes;
 use crate::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout, curves};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
-use common::run_dir;
+use common::refusals::Refusals;
 use common::wire::{PolicyHeader, RolloutHeader};
 use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout, Transition};
+use common::{rollout, run_dir};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -271,6 +272,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         )
     };
     let mut writes = Writes::default();
+    let mut refused = Refusals::new("rollout chunk");
     let mut done = false;
     while !done && !bus.stop_requested(&control) {
         policy_tx.update_connections()?;
@@ -279,13 +281,12 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
             let h = *sample.user_header();
             let (t, n) = (h.steps as usize, h.envs as usize);
             let data = sample.payload();
-            if data.len() != t * n + n || n == 0 {
-                tracing::error!(
-                    chunk = h.chunk,
-                    len = data.len(),
-                    steps = t,
-                    envs = n,
-                    "rollout of the wrong layout refused"
+            // DESIGN §2: a bad chunk is dropped and counted; it never reaches PPO, and it is
+            // not answered (its chunk id may be anything).
+            if let Some(kind) = rollout::chunk_refusal(&h, data) {
+                refused.refuse(
+                    kind,
+                    &format!("chunk {}: {} × {} + {} of {}", h.chunk, t, n, n, data.len()),
                 );
                 continue;
             }
@@ -353,6 +354,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         version = learner.policy_version(),
         chunks_missed = missed,
         write_failures = writes.failures(),
+        refused = %refused.summary(),
         "learner done; policy lag of the transitions received (versions: share): {}",
         lags.summary()
     );

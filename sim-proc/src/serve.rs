@@ -14,6 +14,7 @@ use crate::terrain::Terrain;
 use anyhow::Context;
 use common::config::{LearnMode, PolicySlot};
 use common::ipc::{self, Bus, Receiver};
+use common::refusals::Refusals;
 use common::wire::{
     self, EnvTick, PolicyHeader, RolloutHeader, TerrainEstimate, TerrainHeader, TickHeader,
 };
@@ -63,6 +64,7 @@ struct Inbox {
     seed: u64,
     /// Sample actions (training) or act with the mean (`sim.mean-actions`, evaluation).
     stochastic: bool,
+    refused: Refusals,
 }
 
 impl Inbox {
@@ -77,6 +79,7 @@ impl Inbox {
             heads: [PolicyHeader::default(); 3],
             seed,
             stochastic,
+            refused: Refusals::new("policy"),
         })
     }
 
@@ -88,23 +91,15 @@ impl Inbox {
                 continue;
             };
             let h = *sample.user_header();
+            // DESIGN §2: the sim never acts with a policy it cannot trust; it keeps the one it has.
+            if let Some(kind) = policy_refusal(*slot, &h, sample.payload()) {
+                self.refused.refuse(
+                    kind,
+                    &format!("slot {}, version {}", slot.name(), h.version),
+                );
+                continue;
+            }
             let layout = h.layout();
-            if layout.obs_dim != OBS_DIM || layout.act_dim != ACT_DIM {
-                tracing::error!(
-                    slot = slot.name(),
-                    ?layout,
-                    "policy with the wrong shape refused; keeping the current one"
-                );
-                continue;
-            }
-            if h.slot != slot.index() as u32 {
-                tracing::error!(
-                    slot = slot.name(),
-                    header_slot = h.slot,
-                    "policy published for another slot refused; keeping the current one"
-                );
-                continue;
-            }
             let fresh = |weights: &[f32]| -> anyhow::Result<PolicyController> {
                 let policy = Policy::new(layout.clone(), weights.to_vec(), h.obs_clip)?;
                 // The general slot keeps the run seed's stream, so a one-learner run acts as
@@ -170,6 +165,33 @@ impl Inbox {
             .filter(|(_, l)| *l != 0)
             .collect()
     }
+}
+
+/// The widest hidden layer a policy header may name (the config allows 4096): anything
+/// wider is no learner's, and its size would overflow the layout arithmetic.
+const MAX_WIDTH: u32 = 1 << 16;
+
+/// Why a policy message for `slot` must be refused, if it must: a shape the sim cannot act
+/// with, another slot's header, weights of the wrong length, or a non-finite weight.
+fn policy_refusal(slot: PolicySlot, h: &PolicyHeader, weights: &[f32]) -> Option<&'static str> {
+    let n = (h.n_hidden as usize).min(h.hidden.len());
+    if h.obs_dim as usize != OBS_DIM
+        || h.act_dim as usize != ACT_DIM
+        || n == 0
+        || h.hidden[..n].iter().any(|&w| w == 0 || w > MAX_WIDTH)
+    {
+        return Some("wrong shape");
+    }
+    if h.slot != slot.index() as u32 {
+        return Some("another slot's policy");
+    }
+    if weights.len() != h.layout().len() {
+        return Some("wrong length");
+    }
+    if !h.obs_clip.is_finite() || !weights.iter().all(|w| w.is_finite()) {
+        return Some("non-finite weights");
+    }
+    None
 }
 
 /// Sync mode (DESIGN §3): whether `h` answers the `sent` chunks — its learner has consumed
@@ -325,6 +347,7 @@ pub fn serve(
         successes = driver.episodes.successes,
         policy_version = inbox.version(),
         env_steps_per_s = env_steps as f64 / secs,
+        refused = %inbox.refused.summary(),
         "sim done"
     );
     Ok(())
@@ -347,6 +370,48 @@ mod tests {
         assert!(
             answers(&h(0, 8), 3, 7),
             "a restarted learner's first policy"
+        );
+    }
+
+    #[test]
+    fn a_policy_the_sim_cannot_trust_is_refused_by_kind() {
+        let layout = common::PolicyLayout::new(OBS_DIM, &[4, 3], ACT_DIM);
+        let h = PolicyHeader::new(&layout, 5, PolicySlot::Flat.index() as u32, 10.0);
+        let w = vec![0.1f32; layout.len()];
+        assert_eq!(policy_refusal(PolicySlot::Flat, &h, &w), None);
+        assert_eq!(
+            policy_refusal(PolicySlot::Rough, &h, &w),
+            Some("another slot's policy")
+        );
+        assert_eq!(
+            policy_refusal(PolicySlot::Flat, &h, &w[1..]),
+            Some("wrong length")
+        );
+        let mut nan = w.clone();
+        nan[7] = f32::NAN;
+        assert_eq!(
+            policy_refusal(PolicySlot::Flat, &h, &nan),
+            Some("non-finite weights")
+        );
+        let clip = PolicyHeader {
+            obs_clip: f32::INFINITY,
+            ..h
+        };
+        assert_eq!(
+            policy_refusal(PolicySlot::Flat, &clip, &w),
+            Some("non-finite weights")
+        );
+        // Widths that would overflow the layout's size are refused before it is computed.
+        let mut huge = h;
+        huge.hidden[0] = u32::MAX;
+        assert_eq!(
+            policy_refusal(PolicySlot::Flat, &huge, &w),
+            Some("wrong shape")
+        );
+        let empty = PolicyHeader { n_hidden: 0, ..h };
+        assert_eq!(
+            policy_refusal(PolicySlot::Flat, &empty, &w),
+            Some("wrong shape")
         );
     }
 }
