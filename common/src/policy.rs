@@ -271,6 +271,9 @@ pub struct PolicyFileError {
     pub reason: String,
 }
 
+/// The widest layer a policy file may describe (the config allows 4096).
+const MAX_WIDTH: usize = 1 << 16;
+
 impl Policy {
     /// Serialises layout, observation clip and weights: magic, version, obs, hidden count,
     /// hidden widths, act, clip, weight count, weights (all little-endian u32/f32).
@@ -326,6 +329,14 @@ impl Policy {
             .map(|_| word().map(|w| u32::from_le_bytes(w) as usize))
             .collect::<Result<Vec<_>, _>>()?;
         let act_dim = u32::from_le_bytes(word()?) as usize;
+        // Sizes no network has would overflow the layout's arithmetic.
+        if let Some(d) = [obs_dim, act_dim]
+            .iter()
+            .chain(&hidden)
+            .find(|&&d| d > MAX_WIDTH)
+        {
+            return Err(err(format!("a layer of {d} units, at most {MAX_WIDTH}")));
+        }
         let obs_clip = f32::from_le_bytes(word()?);
         let n = u32::from_le_bytes(word()?) as usize;
         let weights = (0..n)

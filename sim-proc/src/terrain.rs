@@ -237,6 +237,20 @@ fn fade(t: f64) -> f64 {
     t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
 }
 
+/// The most samples a heightmap may have per side: 8192 × 8192 is a 256 MiB height grid,
+/// far past any lava tube scanned at centimetres; a larger header is a broken file.
+const MAX_SIDE: usize = 8192;
+
+/// Refuses dimensions no heightmap has, before anything is allocated for them.
+fn check_side(rows: usize, cols: usize) -> Result<(), String> {
+    if rows > MAX_SIDE || cols > MAX_SIDE {
+        return Err(format!(
+            "{rows}×{cols} samples: at most {MAX_SIDE}×{MAX_SIDE}"
+        ));
+    }
+    Ok(())
+}
+
 /// A 16-bit grayscale PNG as row-major heights (metres): row 0 at the map's origin Z.
 fn read_png16(path: &Path, height_scale: f64) -> Result<(usize, usize, Vec<f64>), String> {
     let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
@@ -251,6 +265,7 @@ fn read_png16(path: &Path, height_scale: f64) -> Result<(usize, usize, Vec<f64>)
         ));
     }
     let (cols, rows) = (info.width as usize, info.height as usize);
+    check_side(rows, cols)?;
     let mut buf = vec![0u8; reader.output_buffer_size().ok_or("image too large")?];
     reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
     let heights = buf
@@ -278,6 +293,7 @@ fn read_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), String> {
     let [rows, cols] = dims[..] else {
         return Err(format!("header `{header}` must be `rows cols`"));
     };
+    check_side(rows, cols)?;
     let mut heights = Vec::with_capacity(rows * cols);
     for (n, line) in lines.enumerate() {
         let row: Vec<f64> = line
