@@ -4,9 +4,8 @@
 //! summary counts the failed writes. Needs root (CI runs as root) to mount the tmpfs.
 
 use common::Config;
-use common::ipc::{self, Bus};
 use common::run_dir;
-use common::wire::{PolicyHeader, TickHeader};
+use common::wire::PolicyHeader;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{Duration, Instant};
@@ -85,13 +84,8 @@ fn a_full_disk_costs_checkpoints_not_training() {
         ],
         &run,
     );
-    let bus = Bus::connect(&run, "monitor").expect("monitor node");
-    let ticks = bus
-        .receiver::<common::wire::EnvTick, TickHeader>(&ipc::TELEMETRY, None)
-        .expect("telemetry");
-    let policies = bus
-        .receiver::<f32, PolicyHeader>(&ipc::POLICY, Some("general"))
-        .expect("policy");
+    let watch = support::Watch::connect(&run, "monitor");
+    let (ticks, policies) = (&watch.ticks, &watch.policies);
     let give_up = Instant::now() + PATIENCE;
     let mut failed_at = None;
     let mut newest = PolicyHeader::default();
@@ -109,7 +103,7 @@ fn a_full_disk_costs_checkpoints_not_training() {
             }
         }
     }
-    drop((ticks, policies, bus));
+    drop(watch);
     let (code, said) = launcher.wait_interrupted();
     assert_eq!(code, 130, "{said}");
 

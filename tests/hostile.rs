@@ -4,9 +4,9 @@
 //! of each kind, and keep running; the sim never acts with the poisoned policy.
 
 use common::Transition;
-use common::ipc::{self, Bus};
+use common::ipc;
 use common::run_dir;
-use common::wire::{EnvTick, PolicyHeader, RolloutHeader, TickHeader};
+use common::wire::{PolicyHeader, RolloutHeader};
 use std::time::{Duration, Instant};
 
 mod support;
@@ -30,13 +30,8 @@ fn hostile_messages_are_dropped_counted_and_logged_once_per_kind() {
     let run = format!("hostile-{}", std::process::id());
     let launcher = support::Launched::start(CONFIG, &run);
     let dir = support::root().join("target/e2e-runs").join(&run);
-    let bus = Bus::connect(&run, "stranger").expect("node");
-    let ticks = bus
-        .receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)
-        .expect("telemetry");
-    let policies = bus
-        .receiver::<f32, PolicyHeader>(&ipc::POLICY, Some("general"))
-        .expect("policy");
+    let watch = support::Watch::connect(&run, "stranger");
+    let (bus, ticks, policies) = (&watch.bus, &watch.ticks, &watch.policies);
     let (steps, envs) = (2u32, 4u32);
     let rollout_tx = bus
         .sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, 64)
@@ -117,7 +112,7 @@ fn hostile_messages_are_dropped_counted_and_logged_once_per_kind() {
             }
         }
     }
-    drop((ticks, policies, rollout_tx, policy_tx, bus));
+    drop((rollout_tx, policy_tx, watch));
     let (code, out) = launcher.wait_interrupted();
     assert_eq!(code, 130, "the run was still going when interrupted: {out}");
 

@@ -3,9 +3,9 @@
 //! the estimator stop and the learner checkpoints and stops; `lavatube clean` then removes
 //! the run's shared memory, and `lavatube run --resume` goes on from the checkpoint.
 
-use common::ipc::{self, Bus, Receiver};
+use common::ipc;
 use common::run_dir;
-use common::wire::{EnvTick, PolicyHeader, TickHeader};
+use common::wire::{PolicyHeader, TickHeader};
 use std::time::{Duration, Instant};
 
 mod support;
@@ -23,43 +23,24 @@ fn running(pid: i32) -> bool {
     })
 }
 
-/// A test's view of a run: its telemetry and the general learner's policies.
-struct Monitor {
-    /// The ports' node, held as long as they are.
-    _node: Bus,
-    ticks: Receiver<EnvTick, TickHeader>,
-    policies: Receiver<f32, PolicyHeader>,
-}
-
-impl Monitor {
-    fn connect(run: &str) -> Self {
-        let bus = Bus::connect(run, "monitor").expect("monitor node");
-        Self {
-            ticks: bus.receiver(&ipc::TELEMETRY, None).expect("telemetry"),
-            policies: bus.receiver(&ipc::POLICY, Some("general")).expect("policy"),
-            _node: bus,
+/// Waits for a telemetry tick and a policy of at least `version`; the first tick seen
+/// and the first policy header seen.
+fn until_going(watch: &support::Watch, version: u32) -> (TickHeader, PolicyHeader) {
+    let give_up = Instant::now() + PATIENCE;
+    let (mut tick, mut first, mut newest) = (None, None, 0);
+    while newest < version || tick.is_none() {
+        assert!(Instant::now() < give_up, "the run did not get going");
+        watch.ticks.wait(Duration::from_millis(10)).expect("wait");
+        if let Some(t) = watch.ticks.try_recv().expect("telemetry") {
+            tick.get_or_insert(*t.user_header());
+        }
+        while let Some(p) = watch.policies.try_recv().expect("policy") {
+            let h = *p.user_header();
+            first.get_or_insert(h);
+            newest = newest.max(h.version);
         }
     }
-
-    /// Waits for a telemetry tick and a policy of at least `version`; the first tick seen
-    /// and the first policy header seen.
-    fn until_going(&self, version: u32) -> (TickHeader, PolicyHeader) {
-        let give_up = Instant::now() + PATIENCE;
-        let (mut tick, mut first, mut newest) = (None, None, 0);
-        while newest < version || tick.is_none() {
-            assert!(Instant::now() < give_up, "the run did not get going");
-            self.ticks.wait(Duration::from_millis(10)).expect("wait");
-            if let Some(t) = self.ticks.try_recv().expect("telemetry") {
-                tick.get_or_insert(*t.user_header());
-            }
-            while let Some(p) = self.policies.try_recv().expect("policy") {
-                let h = *p.user_header();
-                first.get_or_insert(h);
-                newest = newest.max(h.version);
-            }
-        }
-        (tick.expect("a tick"), first.expect("a policy"))
-    }
+    (tick.expect("a tick"), first.expect("a policy"))
 }
 
 /// The newest checkpoint's update number in `dir`.
@@ -76,8 +57,8 @@ fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoi
     let run = format!("orphan-{}", std::process::id());
     let launcher = support::Launched::start(CONFIG, &run);
     let dir = support::root().join("target/e2e-runs").join(&run);
-    let monitor = Monitor::connect(&run);
-    monitor.until_going(1);
+    let monitor = support::Watch::connect(&run, "monitor");
+    until_going(&monitor, 1);
     let children: Vec<(String, i32)> = ipc::list_nodes(&run)
         .expect("nodes")
         .into_iter()
@@ -141,8 +122,8 @@ fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoi
     let saved = newest_checkpoint(&dir);
     let dir_arg = dir.display().to_string();
     let resumed = support::Launched::run(&["--resume", &dir_arg], &format!("{run}-resumed"));
-    let monitor = Monitor::connect(&run);
-    let (tick, policy) = monitor.until_going(saved as u32 + 1);
+    let monitor = support::Watch::connect(&run, "monitor");
+    let (tick, policy) = until_going(&monitor, saved as u32 + 1);
     assert!(
         u64::from(policy.version) >= saved,
         "the resumed learner publishes version {} after {saved} updates",

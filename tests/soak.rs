@@ -7,9 +7,9 @@
 //! that versions only grow with none skipped, nothing is left in shared memory, and neither
 //! the tick rate nor any process's memory drifts.
 
-use common::ipc::{self, Bus};
+use common::ipc;
 use common::run_dir;
-use common::wire::{EnvTick, PolicyHeader, TickHeader};
+use common::wire::TickHeader;
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 
@@ -65,13 +65,8 @@ fn churn_soak() {
     );
     let launcher = support::Launched::start(CONFIG, &run);
     let dir = support::root().join("target/e2e-runs").join(&run);
-    let bus = Bus::connect(&run, "monitor").expect("monitor node");
-    let ticks = bus
-        .receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)
-        .expect("telemetry");
-    let policies = bus
-        .receiver::<f32, PolicyHeader>(&ipc::POLICY, Some("general"))
-        .expect("policy");
+    let watch = support::Watch::connect(&run, "monitor");
+    let (ticks, policies) = (&watch.ticks, &watch.policies);
 
     let started = Instant::now();
     let mut rng = Lcg(u64::from(std::process::id()));
@@ -142,7 +137,7 @@ fn churn_soak() {
             next_swap = now + SWAP_EVERY;
         }
     }
-    drop((ticks, policies, bus));
+    drop(watch);
     let (code, said) = launcher.wait_interrupted();
     let left = ipc::run_files(&run);
     let summary: serde_json::Value = serde_json::from_str(

@@ -119,7 +119,7 @@ proptest! {
         let text = format!("{header}\n{}\n", rows.join("\n"));
         let path = Path::new("other.csv");
         let read: Result<Vec<_>, _> = TelemetryReader::new(text.as_bytes(), path)
-            .and_then(|r| r.collect::<Result<Vec<_>, _>>());
+            .and_then(Iterator::collect::<Result<Vec<_>, _>>);
         if let Err(e) = read {
             let msg = e.to_string();
             prop_assert!(!msg.contains('\n') && msg.contains("other.csv"), "{}", msg);

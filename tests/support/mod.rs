@@ -1,6 +1,8 @@
 //! Shared by the end-to-end tests: running the launcher as a real process, with a watchdog
 //! instead of a timing assertion.
 
+use common::ipc::{self, Bus, Receiver};
+use common::wire::{EnvTick, PolicyHeader, TickHeader};
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
@@ -93,4 +95,26 @@ impl Drop for Launched {
 #[allow(dead_code)] // each test binary compiles this module; not all use every helper
 pub fn lavatube_run(config: &str, run_id: &str) -> (i32, String) {
     Launched::start(config, run_id).wait()
+}
+
+/// A test's ports on a run's bus, as any monitor would open them: the telemetry, and the
+/// general learner's policies.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub struct Watch {
+    pub bus: Bus,
+    pub ticks: Receiver<EnvTick, TickHeader>,
+    pub policies: Receiver<f32, PolicyHeader>,
+}
+
+#[allow(dead_code)]
+impl Watch {
+    /// Joins run `run` as node `name`.
+    pub fn connect(run: &str, name: &str) -> Self {
+        let bus = Bus::connect(run, name).expect("monitor node");
+        Self {
+            ticks: bus.receiver(&ipc::TELEMETRY, None).expect("telemetry"),
+            policies: bus.receiver(&ipc::POLICY, Some("general")).expect("policy"),
+            bus,
+        }
+    }
 }
