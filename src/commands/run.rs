@@ -1,7 +1,7 @@
 //! `lavatube run`: one training run (see [`Run`]). Validates the config before anything
 //! starts, then runs it to the end and prints its summary.
 
-use crate::runtime::{Finished, ResumedConfig, Run, report_sweep};
+use crate::runtime::{ResumedConfig, Run, report_sweep};
 use common::Config;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -40,24 +40,23 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         let resumed = ResumedConfig::load(dir)?;
         report_sweep();
         let finished = Run::resume(&resumed, args.quiet)?.execute()?;
-        return Ok(exit_code(&finished));
+        return Ok(exit_code(!finished.interrupted));
     }
     let cfg = match &args.config {
         Some(p) => Config::load(p)?,
         None => Config::default(),
     };
     let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
-    report_sweep();
-    let finished = Run::prepare(&cfg, &run_id, &run_id, args.quiet)?.execute()?;
-    Ok(exit_code(&finished))
+    let completed = execute(&cfg, &run_id, &run_id, args.quiet)?;
+    Ok(exit_code(completed))
 }
 
 /// 130 (as a shell reports SIGINT) for a run stopped by Ctrl-C, else success.
-fn exit_code(finished: &Finished) -> ExitCode {
-    if finished.interrupted {
-        ExitCode::from(130)
-    } else {
+fn exit_code(completed: bool) -> ExitCode {
+    if completed {
         ExitCode::SUCCESS
+    } else {
+        ExitCode::from(130)
     }
 }
 
