@@ -410,14 +410,27 @@ impl Supervision<'_, '_> {
         for m in &mut self.members {
             let (role, name) = (m.role(), m.role().name());
             match m.watch(logs, bar, may_restart)? {
-                Some(Event::Restarting { status, after }) => {
+                Some(Event::Restarting {
+                    status,
+                    after,
+                    recent,
+                }) => {
                     let cleaned = self.bus.cleanup_dead_nodes();
+                    let budget = m.spec.policy.window().map_or_else(
+                        || format!("{recent} of {} in this run", m.spec.policy.max_restarts),
+                        |w| {
+                            format!(
+                                "{recent} of {} within {} s",
+                                m.spec.policy.max_restarts,
+                                w.as_secs()
+                            )
+                        },
+                    );
                     say(
                         bar,
                         format!(
-                            "{name} exited with {status}; restart {} of {} in {:.1} s ({cleaned} dead node(s) cleaned up)",
+                            "{name} exited with {status}; restart {} ({budget}) in {:.1} s ({cleaned} dead node(s) cleaned up)",
                             m.restarts + 1,
-                            m.spec.policy.max_restarts,
                             after.as_secs_f64()
                         ),
                     );

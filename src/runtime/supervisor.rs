@@ -4,6 +4,7 @@
 use super::{Child, Output, Role};
 use common::config::RestartPolicy;
 use indicatif::ProgressBar;
+use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
 use std::process::ExitStatus;
 use std::time::{Duration, Instant};
@@ -20,8 +21,13 @@ pub struct Spec {
 /// What [`Supervised::watch`] saw.
 #[derive(Debug)]
 pub enum Event {
-    /// The process exited and will be started again after `after`.
-    Restarting { status: ExitStatus, after: Duration },
+    /// The process exited and will be started again after `after`; `recent` restarts
+    /// (this one included) fall within the policy's window.
+    Restarting {
+        status: ExitStatus,
+        after: Duration,
+        recent: u32,
+    },
     /// The process was started again.
     Restarted { pid: u32 },
     /// The process exited for good.
@@ -32,7 +38,10 @@ pub enum Event {
 pub struct Supervised {
     pub spec: Spec,
     pub child: Child,
+    /// Restarts over the run.
     pub restarts: u32,
+    /// When the restarts within the policy's window happened, oldest first.
+    recent: VecDeque<Instant>,
     restart_at: Option<Instant>,
     /// The current process's exit has been reported.
     seen_exit: bool,
@@ -45,6 +54,7 @@ impl Supervised {
             spec,
             child,
             restarts: 0,
+            recent: VecDeque::new(),
             restart_at: None,
             seen_exit: false,
         })
@@ -74,6 +84,7 @@ impl Supervised {
                 self.restart_at = None;
                 self.replace(logs, bar)?;
                 self.restarts += 1;
+                self.recent.push_back(Instant::now());
                 return Ok(Some(Event::Restarted {
                     pid: self.child.pid(),
                 }));
@@ -87,17 +98,31 @@ impl Supervised {
             return Ok(None);
         };
         self.seen_exit = true;
-        if may_restart
-            && self
-                .spec
-                .policy
-                .restarts_after(status.success(), self.restarts)
-        {
-            let after = self.spec.policy.backoff(self.restarts);
+        let recent = self.recent_restarts(Instant::now());
+        if may_restart && self.spec.policy.restarts_after(status.success(), recent) {
+            let after = self.spec.policy.backoff(recent);
             self.restart_at = Some(Instant::now() + after);
-            return Ok(Some(Event::Restarting { status, after }));
+            return Ok(Some(Event::Restarting {
+                status,
+                after,
+                recent: recent + 1,
+            }));
         }
         Ok(Some(Event::Exited(status)))
+    }
+
+    /// Restarts within the policy's window ending `now` (all of them without a window).
+    fn recent_restarts(&mut self, now: Instant) -> u32 {
+        if let Some(window) = self.spec.policy.window() {
+            while self
+                .recent
+                .front()
+                .is_some_and(|t| now.duration_since(*t) >= window)
+            {
+                self.recent.pop_front();
+            }
+        }
+        u32::try_from(self.recent.len()).unwrap_or(u32::MAX)
     }
 
     /// Starts the process again with the spec's (possibly changed) arguments; the previous

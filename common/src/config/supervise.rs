@@ -21,20 +21,35 @@ pub enum Restart {
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 pub struct RestartPolicy {
     pub restart: Restart,
-    /// Restarts allowed over the run; one more exit ends it. 0 ..= 1000.
+    /// Restarts allowed within any `window-s` seconds; one more exit ends the run. 0 ..= 1000.
     pub max_restarts: u32,
-    /// Wait before the first restart, doubled for each further one (capped at 30 s). 0 ..= 600000.
+    /// Wait before a restart, doubled for each restart within the window (capped at 30 s). 0 ..= 600000.
     pub backoff_ms: u64,
+    /// The window `max-restarts` counts over, seconds; 0 counts over the whole run. 0 ..= 86400.
+    #[serde(default = "default_window_s")]
+    pub window_s: u64,
+}
+
+/// Restarts count over the last 10 minutes unless a config says otherwise: a week-long run
+/// survives a fault a day, a crash loop still ends the run within minutes.
+fn default_window_s() -> u64 {
+    600
 }
 
 impl RestartPolicy {
-    /// The wait before restart number `n` (0-based).
+    /// The window restarts count over; `None` counts over the whole run.
+    pub fn window(&self) -> Option<std::time::Duration> {
+        (self.window_s > 0).then(|| std::time::Duration::from_secs(self.window_s))
+    }
+
+    /// The wait before a restart that follows `n` restarts within the window.
     pub fn backoff(&self, n: u32) -> std::time::Duration {
         let ms = self.backoff_ms.saturating_mul(1 << n.min(16)).min(30_000);
         std::time::Duration::from_millis(ms)
     }
 
-    /// Whether a process that exited (`success`) after `restarts` restarts comes back.
+    /// Whether a process that exited (`success`) after `restarts` restarts within the window
+    /// comes back.
     pub fn restarts_after(&self, success: bool, restarts: u32) -> bool {
         let wanted = match self.restart {
             Restart::Never => false,
@@ -49,9 +64,9 @@ impl RestartPolicy {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
 pub struct SuperviseConfig {
-    /// Default: on-failure, 5 restarts, 1 s backoff (it resumes from its newest checkpoint).
+    /// Default: on-failure, 5 restarts in 10 minutes, 1 s backoff (it resumes from its newest checkpoint).
     pub learner: RestartPolicy,
-    /// Default: on-failure, 5 restarts, 1 s backoff (the sim keeps its last estimates meanwhile).
+    /// Default: on-failure, 5 restarts in 10 minutes, 1 s backoff (the sim keeps its last estimates meanwhile).
     pub estimator: RestartPolicy,
     /// Default: never (the sim is the run; its failure ends it).
     pub sim: RestartPolicy,
@@ -66,6 +81,7 @@ impl Default for SuperviseConfig {
             restart: Restart::OnFailure,
             max_restarts: 5,
             backoff_ms: 1000,
+            window_s: default_window_s(),
         };
         Self {
             learner: on_failure,
@@ -74,6 +90,7 @@ impl Default for SuperviseConfig {
                 restart: Restart::Never,
                 max_restarts: 0,
                 backoff_ms: 0,
+                window_s: 0,
             },
             grace_ms: 5000,
         }
@@ -83,24 +100,16 @@ impl Default for SuperviseConfig {
 impl SuperviseConfig {
     /// The restart policies.
     pub(super) fn validate_restarts(&self) -> Result<(), ConfigError> {
-        for (field, backoff, max) in [
-            (
-                "supervise.learner",
-                self.learner.backoff_ms,
-                self.learner.max_restarts,
-            ),
-            (
-                "supervise.estimator",
-                self.estimator.backoff_ms,
-                self.estimator.max_restarts,
-            ),
-            ("supervise.sim", self.sim.backoff_ms, self.sim.max_restarts),
+        for (field, p) in [
+            ("supervise.learner", &self.learner),
+            ("supervise.estimator", &self.estimator),
+            ("supervise.sim", &self.sim),
         ] {
-            if backoff > 600_000 || max > 1000 {
+            if p.backoff_ms > 600_000 || p.max_restarts > 1000 || p.window_s > 86_400 {
                 return Err(invalid(
                     field,
-                    (backoff, max),
-                    "needs backoff-ms <= 600000 and max-restarts <= 1000",
+                    (p.backoff_ms, p.max_restarts, p.window_s),
+                    "needs backoff-ms <= 600000, max-restarts <= 1000 and window-s <= 86400",
                 ));
             }
         }
@@ -130,10 +139,29 @@ mod tests {
             [l.backoff(0), l.backoff(1), l.backoff(2), l.backoff(10)].map(|d| d.as_millis()),
             [500, 1000, 2000, 30_000]
         );
+        assert_eq!(
+            l.window().map(|w| w.as_secs()),
+            Some(600),
+            "the default window"
+        );
         let e = c.supervise.estimator;
         assert!(e.restarts_after(false, 0) && !e.restarts_after(true, 0));
         assert!(!c.supervise.sim.restarts_after(false, 0));
         let err = parse("[supervise]\ngrace-ms = 5\n").expect_err("too short");
         assert!(err.to_string().contains("supervise.grace-ms"), "{err}");
+        let whole = parse(
+            "[supervise]\nlearner = { restart = \"always\", max-restarts = 2, backoff-ms = 0, window-s = 0 }\n",
+        )
+        .expect("valid");
+        assert_eq!(
+            whole.supervise.learner.window(),
+            None,
+            "0 counts the whole run"
+        );
+        let err = parse(
+            "[supervise]\nestimator = { restart = \"always\", max-restarts = 2, backoff-ms = 0, window-s = 90000 }\n",
+        )
+        .expect_err("a window over a day");
+        assert!(err.to_string().contains("supervise.estimator"), "{err}");
     }
 }
