@@ -78,6 +78,7 @@ fn churn_soak() {
     let mut last = TickHeader::default();
     let mut at_sample = (started, 0u64, 0u64, 0u64);
     let mut samples: Vec<serde_json::Value> = Vec::new();
+    let mut swap: Option<std::process::Child> = None;
     while started.elapsed() < Duration::from_secs(secs) {
         ticks.wait(Duration::from_millis(20)).expect("wait");
         while let Some(t) = ticks.try_recv().expect("telemetry") {
@@ -127,15 +128,29 @@ fn churn_soak() {
             }
             next_kill = now + Duration::from_secs(rng.next_in(20, 60));
         }
-        if faults && now >= next_swap {
-            let out = std::process::Command::new(env!("CARGO_BIN_EXE_lavatube"))
-                .args(["swap-learner", "--run-id", &run])
-                .current_dir(support::root())
-                .output()
-                .expect("swap-learner runs");
-            swaps_ok += u32::from(out.status.success());
+        // A swap takes seconds: it runs beside the loop, which keeps draining the monitor's
+        // small policy buffer meanwhile (a blocked reader would miss versions).
+        if let Some(s) = swap.as_mut()
+            && let Some(status) = s.try_wait().expect("swap-learner")
+        {
+            swaps_ok += u32::from(status.success());
+            swap = None;
+        }
+        if faults && now >= next_swap && swap.is_none() {
+            swap = Some(
+                std::process::Command::new(env!("CARGO_BIN_EXE_lavatube"))
+                    .args(["swap-learner", "--run-id", &run])
+                    .current_dir(support::root())
+                    .stdout(std::process::Stdio::null())
+                    .stderr(std::process::Stdio::null())
+                    .spawn()
+                    .expect("swap-learner runs"),
+            );
             next_swap = now + SWAP_EVERY;
         }
+    }
+    if let Some(mut s) = swap {
+        swaps_ok += u32::from(s.wait().expect("swap-learner").success());
     }
     drop(watch);
     let (code, said) = launcher.wait_interrupted();
@@ -162,6 +177,19 @@ fn churn_soak() {
     distinct.dedup();
     let monotone = versions.windows(2).all(|w| w[1] >= w[0]);
     let gap_free = distinct.windows(2).all(|w| w[1] == w[0] + 1);
+    // The learner's own record: one metrics row per update, across every restart and swap.
+    let mut metrics = csv::Reader::from_path(dir.join(run_dir::METRICS_CSV)).expect("metrics.csv");
+    let col = metrics
+        .headers()
+        .expect("header")
+        .iter()
+        .position(|h| h == "policy_version")
+        .expect("a policy_version column");
+    let updates: Vec<u32> = metrics
+        .records()
+        .map(|r| r.expect("a row")[col].parse().expect("a version"))
+        .collect();
+    let updates_gap_free = updates.windows(2).all(|w| w[1] == w[0] + 1);
     let report = serde_json::json!({
         "run": run,
         "seconds": secs,
@@ -171,6 +199,7 @@ fn churn_soak() {
         "restarts": summary["restarts"],
         "learner_swaps": summary["learner_swaps"],
         "policy_versions": { "first": distinct.first(), "last": distinct.last(), "distinct": distinct.len(), "monotone": monotone, "gap_free": gap_free },
+        "metrics_versions": { "first": updates.first(), "last": updates.last(), "rows": updates.len(), "gap_free": updates_gap_free },
         "chunks_missed": missed,
         "files_left_in_shared_memory": left.len(),
         "success_rate": summary["success_rate"],
@@ -184,5 +213,6 @@ fn churn_soak() {
     }
     assert_eq!(code, 130, "the run was still going at the end: {said}");
     assert!(monotone && gap_free, "policy versions: {distinct:?}");
+    assert!(updates_gap_free, "versions in metrics.csv: {updates:?}");
     assert!(left.is_empty(), "left in shared memory: {left:?}");
 }
