@@ -55,6 +55,7 @@ fn hostile_messages_are_dropped_counted_and_logged_once_per_kind() {
         env_steps: 1 << 40,
         steps,
         envs,
+        ..RolloutHeader::default()
     };
     let chunk = |f: &dyn Fn(usize, &mut Transition)| -> Vec<Transition> {
         (0..(steps * envs + envs) as usize)

@@ -26,6 +26,21 @@ pub fn parse_run_id(s: &str) -> Result<String, String> {
     crate::ipc::validate_run_id(s).map(|()| s.to_string())
 }
 
+/// clap value parser for a Zenoh endpoint of a run across hosts, `tcp/HOST:PORT`.
+pub fn parse_endpoint(endpoint: &str) -> Result<String, String> {
+    let ok = endpoint
+        .strip_prefix("tcp/")
+        .and_then(|rest| rest.rsplit_once(':'))
+        .is_some_and(|(host, port)| !host.is_empty() && port.parse::<u16>().is_ok());
+    if ok {
+        Ok(endpoint.to_string())
+    } else {
+        Err(format!(
+            "endpoint `{endpoint}` is not tcp/HOST:PORT (e.g. tcp/0.0.0.0:7447)"
+        ))
+    }
+}
+
 /// How the launcher starts a process in a run.
 #[derive(Debug, Clone, clap::Args)]
 pub struct JoinArgs {
@@ -35,4 +50,25 @@ pub struct JoinArgs {
     /// The run to join over shared memory.
     #[arg(long, value_parser = parse_run_id)]
     pub run_id: String,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endpoints_are_tcp_host_and_port() {
+        assert!(parse_endpoint("tcp/127.0.0.1:7447").is_ok());
+        assert!(parse_endpoint("tcp/[::1]:7447").is_ok());
+        for bad in [
+            "127.0.0.1:7447",
+            "tcp/host",
+            "tcp/:1",
+            "udp/1.2.3.4:5",
+            "tcp/h:99999",
+        ] {
+            let e = parse_endpoint(bad).expect_err(bad);
+            assert!(e.contains(bad), "{e}");
+        }
+    }
 }

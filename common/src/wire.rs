@@ -2,7 +2,9 @@
 //! `repr(C)` with fixed-width fields and a versioned type name; slices carry the bulk data
 //! and a user header carries the counters. Layout tests pin sizes and offsets.
 
+use crate::config::PolicySlot;
 use crate::policy::{MAX_HIDDEN, PolicyLayout};
+use crate::{ACT_DIM, OBS_DIM};
 use iceoryx2::prelude::ZeroCopySend;
 
 // ---- sim → learner: `rollout` ---------------------------------------------------------------
@@ -11,9 +13,9 @@ use iceoryx2::prelude::ZeroCopySend;
 /// `[step][env]` order, then `envs` more whose `obs` is each env's bootstrap observation.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.RolloutHeader.v2")]
+#[type_name("lavatube.RolloutHeader.v3")]
 pub struct RolloutHeader {
-    /// Chunk sequence number from 0; a gap means the learner missed chunks.
+    /// Chunk sequence number from 0, per source; a gap means the learner missed chunks.
     pub chunk: u64,
     /// Environment steps the sim has taken in total, including this chunk.
     pub env_steps: u64,
@@ -22,6 +24,10 @@ pub struct RolloutHeader {
     /// slot of the policy that acted.
     pub steps: u32,
     pub envs: u32,
+    /// The sim that produced the chunk: its host's source id (`lavatube join --source`), 0
+    /// for the sim beside the learner. Chunk ids and env ids count per source.
+    pub source: u32,
+    pub _reserved: u32,
 }
 
 // ---- learner → sim: `policy` ----------------------------------------------------------------
@@ -56,6 +62,10 @@ pub struct PolicyHeader {
     pub write_failures: u32,
 }
 
+/// The widest hidden layer a policy header may name (the config allows 4096): anything
+/// wider is no learner's, and its size would overflow the layout arithmetic.
+const MAX_POLICY_WIDTH: u32 = 1 << 16;
+
 impl PolicyHeader {
     pub fn new(layout: &PolicyLayout, version: u32, slot: u32, obs_clip: f32) -> Self {
         let mut hidden = [0; MAX_HIDDEN];
@@ -85,6 +95,31 @@ impl PolicyHeader {
             hidden: self.hidden[..n].iter().map(|&h| h as usize).collect(),
             act_dim: self.act_dim as usize,
         }
+    }
+
+    /// Why a policy message for `slot` must be refused, if it must: a shape no sim can act
+    /// with, another slot's header, weights of the wrong length, or a non-finite weight.
+    pub fn refusal(&self, slot: PolicySlot, weights: &[f32]) -> Option<&'static str> {
+        let n = (self.n_hidden as usize).min(self.hidden.len());
+        if self.obs_dim as usize != OBS_DIM
+            || self.act_dim as usize != ACT_DIM
+            || n == 0
+            || self.hidden[..n]
+                .iter()
+                .any(|&w| w == 0 || w > MAX_POLICY_WIDTH)
+        {
+            return Some("wrong shape");
+        }
+        if self.slot != slot.index() as u32 {
+            return Some("another slot's policy");
+        }
+        if weights.len() != self.layout().len() {
+            return Some("wrong length");
+        }
+        if !self.obs_clip.is_finite() || !weights.iter().all(|w| w.is_finite()) {
+            return Some("non-finite weights");
+        }
+        None
     }
 }
 
@@ -306,14 +341,48 @@ mod tests {
     const MSG: &str = "layout changed: bump the version in the type name";
 
     #[test]
+    fn a_policy_no_sim_can_trust_is_refused_by_kind() {
+        let layout = crate::PolicyLayout::new(OBS_DIM, &[4, 3], ACT_DIM);
+        let h = PolicyHeader::new(&layout, 5, PolicySlot::Flat.index() as u32, 10.0);
+        let w = vec![0.1f32; layout.len()];
+        assert_eq!(h.refusal(PolicySlot::Flat, &w), None);
+        assert_eq!(
+            h.refusal(PolicySlot::Rough, &w),
+            Some("another slot's policy")
+        );
+        assert_eq!(h.refusal(PolicySlot::Flat, &w[1..]), Some("wrong length"));
+        let mut nan = w.clone();
+        nan[7] = f32::NAN;
+        assert_eq!(
+            h.refusal(PolicySlot::Flat, &nan),
+            Some("non-finite weights")
+        );
+        let clip = PolicyHeader {
+            obs_clip: f32::INFINITY,
+            ..h
+        };
+        assert_eq!(
+            clip.refusal(PolicySlot::Flat, &w),
+            Some("non-finite weights")
+        );
+        // Widths that would overflow the layout's size are refused before it is computed.
+        let mut huge = h;
+        huge.hidden[0] = u32::MAX;
+        assert_eq!(huge.refusal(PolicySlot::Flat, &w), Some("wrong shape"));
+        let empty = PolicyHeader { n_hidden: 0, ..h };
+        assert_eq!(empty.refusal(PolicySlot::Flat, &w), Some("wrong shape"));
+    }
+
+    #[test]
     fn rollout_header_layout() {
         assert_eq!(
             (size_of::<RolloutHeader>(), align_of::<RolloutHeader>()),
-            (24, 8),
+            (32, 8),
             "{MSG}"
         );
         assert_eq!(offset_of!(RolloutHeader, steps), 16, "{MSG}");
         assert_eq!(offset_of!(RolloutHeader, envs), 20, "{MSG}");
+        assert_eq!(offset_of!(RolloutHeader, source), 24, "{MSG}");
     }
 
     #[test]

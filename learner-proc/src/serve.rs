@@ -17,6 +17,7 @@ use common::refusals::Refusals;
 use common::wire::{PolicyHeader, RolloutHeader};
 use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout, Transition};
 use common::{rollout, run_dir};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -50,6 +51,10 @@ pub struct ServeArgs {
     /// rollout chunk is answered with the same weights; no update, no checkpoint.
     #[arg(long)]
     pub frozen: bool,
+    /// Sims that feed this learner (on a learner host, `net.sim-hosts`): it is done once
+    /// that many have each sent the chunk that completes their `run.total-steps`.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub sources: u32,
 }
 
 /// How many transitions were acted on by a policy 0, 1, 2, 3, 4–7 and 8 or more versions
@@ -117,6 +122,45 @@ impl EpisodeTracker {
         }
         ended
     }
+}
+
+/// What the learner has received from one source (one sim; DESIGN §9): its chunk sequence,
+/// the chunks missed in it, its step count and its episodes in progress.
+#[derive(Debug, Default)]
+struct Source {
+    next_chunk: Option<u64>,
+    chunks: u64,
+    missed: u64,
+    env_steps: u64,
+    episodes: EpisodeTracker,
+}
+
+impl Source {
+    /// Takes chunk `h`: counts it, and any chunks missed before it.
+    fn receive(&mut self, h: &RolloutHeader) {
+        if let Some(want) = self.next_chunk
+            && h.chunk > want
+        {
+            self.missed += h.chunk - want;
+            tracing::warn!(
+                source = h.source,
+                missed = self.missed,
+                "rollout chunks missed"
+            );
+        }
+        self.next_chunk = Some(h.chunk + 1);
+        self.chunks += 1;
+        self.env_steps = h.env_steps;
+    }
+}
+
+/// `source 0: 12 chunks (0 missed), source 1: …`, for the closing log line.
+fn sources_summary(sources: &BTreeMap<u32, Source>) -> String {
+    sources
+        .iter()
+        .map(|(id, s)| format!("source {id}: {} chunks ({} missed)", s.chunks, s.missed))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// Publishes the learner's policy; `chunks_seen` tells a waiting sync-mode sim which of its
@@ -257,8 +301,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         "policy published"
     );
 
-    let mut tracker = EpisodeTracker::default();
-    let (mut next_chunk, mut missed) = (None::<u64>, 0u64);
+    let mut sources = BTreeMap::<u32, Source>::new();
     let mut lags = LagHistogram::default();
     // Every consumed chunk is answered with a policy, so a sync-mode sim never waits in vain.
     let answer = |learner: &Learner, chunks_seen: u64, writes: &Writes| {
@@ -290,21 +333,23 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 );
                 continue;
             }
-            if let Some(want) = next_chunk
-                && h.chunk > want
-            {
-                missed += h.chunk - want;
-                tracing::warn!(missed, "rollout chunks missed");
-            }
-            next_chunk = Some(h.chunk + 1);
-            done = h.env_steps >= cfg.run.total_steps;
+            let source = sources.entry(h.source).or_default();
+            source.receive(&h);
+            // Each sim steps `run.total-steps`; the learner is done once each of its sims
+            // has sent its last chunk.
+            done = sources.len() >= args.sources as usize
+                && sources.values().all(|s| s.env_steps >= cfg.run.total_steps);
             if args.frozen {
                 answer(&learner, h.chunk + 1, &writes)?;
                 continue;
             }
             let (transitions, boot) = data.split_at(t * n);
             let bootstrap_obs: Vec<[f32; OBS_DIM]> = boot.iter().map(|b| b.obs).collect();
-            let episodes = tracker.feed(transitions);
+            let episodes = sources
+                .entry(h.source)
+                .or_default()
+                .episodes
+                .feed(transitions);
             lags.add(learner.policy_version(), transitions);
             let updated = learner.update(&Rollout {
                 transitions,
@@ -352,7 +397,8 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     tracing::info!(
         updates = learner.counters().update,
         version = learner.policy_version(),
-        chunks_missed = missed,
+        chunks_missed = sources.values().map(|s| s.missed).sum::<u64>(),
+        sources = %sources_summary(&sources),
         write_failures = writes.failures(),
         refused = %refused.summary(),
         "learner done; policy lag of the transitions received (versions: share): {}",

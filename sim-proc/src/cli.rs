@@ -67,6 +67,10 @@ pub struct Args {
     /// policies carry (their checkpoints'), as `lavatube run --resume` asks.
     #[arg(long, requires = "run_id")]
     pub resume: bool,
+    /// In a run: this sim's source id in its rollout chunks, which the learner counts chunks
+    /// by. 0 is the sim beside the learner; each sim host of a run across hosts has its own.
+    #[arg(long, default_value_t = 0, requires = "run_id")]
+    pub source: u32,
 }
 
 /// Runs `sim-proc`: joins the run `--run-id` names, or steps the envs alone with the
@@ -80,7 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         cfg.run.seed = seed;
     }
     if let Some(run) = &args.run_id {
-        crate::serve::serve(&cfg, run, args.telemetry.as_deref(), args.resume)?;
+        crate::serve::serve(&cfg, run, &args)?;
         return Ok(Summary::default());
     }
     let mut controller = controller(&args, &cfg)?;

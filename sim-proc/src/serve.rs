@@ -18,8 +18,7 @@ use common::refusals::Refusals;
 use common::wire::{
     self, EnvTick, PolicyHeader, RolloutHeader, TerrainEstimate, TerrainHeader, TickHeader,
 };
-use common::{ACT_DIM, Config, OBS_DIM, Policy, Transition};
-use std::path::Path;
+use common::{Config, Policy, Transition};
 use std::time::{Duration, Instant};
 
 /// How long to sleep between checks while waiting for a policy.
@@ -92,7 +91,7 @@ impl Inbox {
             };
             let h = *sample.user_header();
             // DESIGN §2: the sim never acts with a policy it cannot trust; it keeps the one it has.
-            if let Some(kind) = policy_refusal(*slot, &h, sample.payload()) {
+            if let Some(kind) = h.refusal(*slot, sample.payload()) {
                 self.refused.refuse(
                     kind,
                     &format!("slot {}, version {}", slot.name(), h.version),
@@ -167,33 +166,6 @@ impl Inbox {
     }
 }
 
-/// The widest hidden layer a policy header may name (the config allows 4096): anything
-/// wider is no learner's, and its size would overflow the layout arithmetic.
-const MAX_WIDTH: u32 = 1 << 16;
-
-/// Why a policy message for `slot` must be refused, if it must: a shape the sim cannot act
-/// with, another slot's header, weights of the wrong length, or a non-finite weight.
-fn policy_refusal(slot: PolicySlot, h: &PolicyHeader, weights: &[f32]) -> Option<&'static str> {
-    let n = (h.n_hidden as usize).min(h.hidden.len());
-    if h.obs_dim as usize != OBS_DIM
-        || h.act_dim as usize != ACT_DIM
-        || n == 0
-        || h.hidden[..n].iter().any(|&w| w == 0 || w > MAX_WIDTH)
-    {
-        return Some("wrong shape");
-    }
-    if h.slot != slot.index() as u32 {
-        return Some("another slot's policy");
-    }
-    if weights.len() != h.layout().len() {
-        return Some("wrong length");
-    }
-    if !h.obs_clip.is_finite() || !weights.iter().all(|w| w.is_finite()) {
-        return Some("non-finite weights");
-    }
-    None
-}
-
 /// Sync mode (DESIGN §3): whether `h` answers the `sent` chunks — its learner has consumed
 /// the last one, or it comes from a new learner (restarted or swapped), which may never have
 /// received it; acting with a new learner's policy at once keeps the run going.
@@ -202,12 +174,8 @@ fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
 }
 
 /// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request.
-pub fn serve(
-    cfg: &Config,
-    run_id: &str,
-    telemetry: Option<&Path>,
-    resume: bool,
-) -> anyhow::Result<()> {
+pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Result<()> {
+    let (telemetry, resume) = (args.telemetry.as_deref(), args.resume);
     let n = cfg.sim.num_envs();
     let t_steps = cfg.ppo.rollout_steps(n);
     let bus = Bus::connect(run_id, "sim")?;
@@ -301,6 +269,8 @@ pub fn serve(
             env_steps,
             steps: t_steps as u32,
             envs: n as u32,
+            source: args.source,
+            _reserved: 0,
         };
         rollout_tx.send(header, &chunk)?;
         tele_tx.flush()?;
@@ -370,48 +340,6 @@ mod tests {
         assert!(
             answers(&h(0, 8), 3, 7),
             "a restarted learner's first policy"
-        );
-    }
-
-    #[test]
-    fn a_policy_the_sim_cannot_trust_is_refused_by_kind() {
-        let layout = common::PolicyLayout::new(OBS_DIM, &[4, 3], ACT_DIM);
-        let h = PolicyHeader::new(&layout, 5, PolicySlot::Flat.index() as u32, 10.0);
-        let w = vec![0.1f32; layout.len()];
-        assert_eq!(policy_refusal(PolicySlot::Flat, &h, &w), None);
-        assert_eq!(
-            policy_refusal(PolicySlot::Rough, &h, &w),
-            Some("another slot's policy")
-        );
-        assert_eq!(
-            policy_refusal(PolicySlot::Flat, &h, &w[1..]),
-            Some("wrong length")
-        );
-        let mut nan = w.clone();
-        nan[7] = f32::NAN;
-        assert_eq!(
-            policy_refusal(PolicySlot::Flat, &h, &nan),
-            Some("non-finite weights")
-        );
-        let clip = PolicyHeader {
-            obs_clip: f32::INFINITY,
-            ..h
-        };
-        assert_eq!(
-            policy_refusal(PolicySlot::Flat, &clip, &w),
-            Some("non-finite weights")
-        );
-        // Widths that would overflow the layout's size are refused before it is computed.
-        let mut huge = h;
-        huge.hidden[0] = u32::MAX;
-        assert_eq!(
-            policy_refusal(PolicySlot::Flat, &huge, &w),
-            Some("wrong shape")
-        );
-        let empty = PolicyHeader { n_hidden: 0, ..h };
-        assert_eq!(
-            policy_refusal(PolicySlot::Flat, &empty, &w),
-            Some("wrong shape")
         );
     }
 }

@@ -7,6 +7,7 @@
 
 mod estimator;
 mod model_file;
+mod net;
 mod ppo;
 pub mod range;
 mod reproduce;
@@ -21,6 +22,7 @@ mod tests;
 
 pub use estimator::{EstimatorConfig, MixtureFeature};
 pub use model_file::OfflineMixture;
+pub use net::{MIN_KEY_BYTES, NetConfig};
 pub use ppo::PpoConfig;
 pub use reproduce::ReproduceConfig;
 pub use robot::{RobotConfig, WheelShape};
@@ -64,6 +66,7 @@ pub struct Config {
     pub estimator: EstimatorConfig,
     pub supervise: SuperviseConfig,
     pub reproduce: ReproduceConfig,
+    pub net: NetConfig,
 }
 
 impl Config {
@@ -80,6 +83,7 @@ impl Config {
             cfg.run.init_from.iter_mut().for_each(resolve);
             cfg.run.frozen.values_mut().for_each(resolve);
             cfg.estimator.model.iter_mut().for_each(resolve);
+            cfg.net.key_file.iter_mut().for_each(resolve);
             cfg.sim
                 .terrain
                 .heightmap
@@ -111,7 +115,8 @@ impl Config {
         self.estimator.validate()?;
         self.supervise.validate_restarts()?;
         self.reproduce.validate()?;
-        self.supervise.validate_grace()
+        self.supervise.validate_grace()?;
+        self.net.validate()
     }
 
     /// The travel per decision step below which [`EstimatorConfig::min_speed`] deems a

@@ -1,0 +1,97 @@
+//! `[net]`: a run across hosts (DESIGN §9): the shared key that authenticates its frames, and
+//! how a sim host asks for the newest policies.
+
+use super::ConfigError;
+use super::range::{count_in, invalid};
+use serde::{Deserialize, Serialize};
+use std::path::{Path, PathBuf};
+
+/// The shortest shared key accepted, bytes: an HMAC-SHA256 key below its hash size is weak.
+pub const MIN_KEY_BYTES: usize = 32;
+
+/// How the hosts of a run talk to each other.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct NetConfig {
+    /// File with the run's shared secret (at least 32 bytes; every host needs the same one);
+    /// each frame between hosts carries an HMAC-SHA256 made with it. Required across hosts.
+    pub key_file: Option<PathBuf>,
+    /// How often a sim host asks for the newest policies until it has them, milliseconds. 50 ..= 60000.
+    pub policy_query_ms: u64,
+    /// Sim hosts the learner host trains with: its run ends once each has stepped `run.total-steps`. 1 ..= 1024.
+    pub sim_hosts: u32,
+}
+
+impl Default for NetConfig {
+    fn default() -> Self {
+        Self {
+            key_file: None,
+            policy_query_ms: 500,
+            sim_hosts: 1,
+        }
+    }
+}
+
+impl NetConfig {
+    pub(super) fn validate(&self) -> Result<(), ConfigError> {
+        count_in("net.policy-query-ms", self.policy_query_ms, 50, 60_000)?;
+        count_in("net.sim-hosts", self.sim_hosts, 1, 1024)
+    }
+
+    /// The shared key, read from `key-file`: fails in one line when the run has none, or it
+    /// cannot be read or is too short.
+    pub fn read_key(&self) -> Result<Vec<u8>, ConfigError> {
+        let Some(path) = &self.key_file else {
+            return Err(invalid(
+                "net.key-file",
+                Option::<&Path>::None,
+                "a run across hosts needs a shared key file (e.g. 32 random bytes from `head -c 32 /dev/urandom`)",
+            ));
+        };
+        let key = std::fs::read(path).map_err(|e| ConfigError::Read {
+            path: path.clone(),
+            reason: e.to_string(),
+        })?;
+        if key.len() < MIN_KEY_BYTES {
+            return Err(invalid(
+                "net.key-file",
+                path,
+                format!(
+                    "holds {} bytes; a shared key needs at least {MIN_KEY_BYTES}",
+                    key.len()
+                ),
+            ));
+        }
+        Ok(key)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use crate::config::tests::parse;
+
+    #[test]
+    fn the_key_file_is_required_long_enough_and_read_whole() {
+        let none = parse("").expect("valid");
+        let err = none.net.read_key().expect_err("no key file");
+        assert!(err.to_string().contains("net.key-file"), "{err}");
+        let dir = tempfile::tempdir().expect("tempdir");
+        let short = dir.path().join("short.key");
+        std::fs::write(&short, [7u8; 31]).expect("write");
+        let long = dir.path().join("long.key");
+        std::fs::write(&long, [7u8; 40]).expect("write");
+        for (path, ok) in [(&short, false), (&long, true)] {
+            let c = parse(&format!(
+                "[net]\nkey-file = {:?}\n",
+                path.display().to_string()
+            ))
+            .expect("valid");
+            match c.net.read_key() {
+                Ok(key) => assert!(ok && key == [7u8; 40], "{}", path.display()),
+                Err(e) => assert!(!ok && e.to_string().contains("31 bytes"), "{e}"),
+            }
+        }
+        let err = parse("[net]\npolicy-query-ms = 10\n").expect_err("too often");
+        assert!(err.to_string().contains("net.policy-query-ms"), "{err}");
+    }
+}
