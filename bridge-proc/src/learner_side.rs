@@ -1,0 +1,255 @@
+//! The learner host's bridge (DESIGN §9): republishes every sim host's rollout chunks on the
+//! local `rollout` service, and forwards the local learners' policies to the sim hosts,
+//! answering a sim host's query with the newest policy of each slot. It lists the sim hosts
+//! as they join and leave (Zenoh liveliness).
+
+use crate::frame::{self, Key, Kind};
+use crate::{Counts, Stop, link};
+use common::config::PolicySlot;
+use common::ipc::{self, Bus, Receiver};
+use common::refusals::Refusals;
+use common::wire::{PolicyHeader, RolloutHeader};
+use common::{Config, Transition, rollout};
+use std::collections::BTreeMap;
+use std::time::{Duration, Instant};
+use zenoh::handlers::FifoChannel;
+use zenoh::qos::CongestionControl;
+use zenoh::sample::SampleKind;
+use zenoh::{Session, Wait};
+
+fn zerr(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
+    move |e| anyhow::anyhow!("{what}: {e}")
+}
+
+/// Receives rollout chunks and forwards policies until the run stops this process.
+pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
+    let key = Key::new(&cfg.net.read_key()?);
+    let session = link::listen(endpoint)?;
+    let _token = session
+        .liveliness()
+        .declare_token(link::LEARNER_TOKEN)
+        .wait()
+        .map_err(zerr("liveliness token"))?;
+    tracing::info!(endpoint, "learner host bridge listening");
+    let stop = Stop::default();
+    let slots: Vec<PolicySlot> = cfg
+        .run
+        .learners
+        .iter()
+        .chain(cfg.run.frozen.keys())
+        .copied()
+        .collect();
+    let policies = {
+        let (session, key, run_id, stop) = (
+            session.clone(),
+            key.clone(),
+            run_id.to_string(),
+            stop.clone(),
+        );
+        std::thread::Builder::new()
+            .name("policies".into())
+            .spawn(move || {
+                let r = forward_policies(&run_id, &slots, &session, &key, &stop);
+                stop.set();
+                r
+            })?
+    };
+    let rollouts = receive_rollouts(cfg, run_id, &session, &key, &stop);
+    stop.set();
+    let policies = policies
+        .join()
+        .map_err(|_| anyhow::anyhow!("the policy thread panicked"))?;
+    rollouts.and(policies)
+}
+
+fn forward_policies(
+    run_id: &str,
+    slots: &[PolicySlot],
+    session: &Session,
+    key: &Key,
+    stop: &Stop,
+) -> anyhow::Result<()> {
+    let bus = Bus::connect(run_id, "bridge-policies")?;
+    let control = bus.control_listener()?;
+    let mut ports = Vec::new();
+    for &slot in slots {
+        let rx: Receiver<f32, PolicyHeader> = bus.receiver(&ipc::POLICY, Some(slot.name()))?;
+        let publisher = session
+            .declare_publisher(link::policy_key(slot.name()))
+            .congestion_control(CongestionControl::Block)
+            .wait()
+            .map_err(zerr("policy publisher"))?;
+        ports.push((slot, rx, publisher));
+    }
+    let queries = session
+        .declare_queryable(link::POLICY_ALL)
+        .with(FifoChannel::new(16))
+        .wait()
+        .map_err(zerr("policy queryable"))?;
+    // The newest frame of each slot, for a sim host that asks.
+    let mut newest: BTreeMap<PolicySlot, Vec<u8>> = BTreeMap::new();
+    let mut sent = Counts::default();
+    while !stop.is_set() && !bus.stop_requested(&control) {
+        if let Some((_, first, _)) = ports.first() {
+            first.wait(Duration::from_millis(10))?;
+        }
+        for (slot, rx, publisher) in &ports {
+            while let Some(sample) = rx.try_recv()? {
+                let h = *sample.user_header();
+                let bytes = frame::encode(
+                    key,
+                    Kind::Policy,
+                    slot.index() as u32,
+                    sent.frames,
+                    &h,
+                    sample.payload(),
+                );
+                sent.add(bytes.len());
+                publisher
+                    .put(bytes.clone())
+                    .wait()
+                    .map_err(|e| anyhow::anyhow!("policy version {} not sent: {e}", h.version))?;
+                newest.insert(*slot, bytes);
+            }
+        }
+        while let Some(query) = queries.try_recv().map_err(zerr("policy queryable"))? {
+            for (slot, bytes) in &newest {
+                query
+                    .reply(link::policy_key(slot.name()), bytes.clone())
+                    .wait()
+                    .map_err(zerr("policy reply"))?;
+            }
+        }
+    }
+    tracing::info!(
+        frames = sent.frames,
+        bytes = sent.bytes,
+        "policy frames forwarded"
+    );
+    Ok(())
+}
+
+/// How often the bridge logs what each sim host sent.
+const REPORT_EVERY: Duration = Duration::from_secs(10);
+
+/// What has come from one sim host.
+#[derive(Debug, Default)]
+struct Host {
+    next_seq: u64,
+    lost: u64,
+    received: Counts,
+    /// `received` at the last report.
+    reported: Counts,
+    last_chunk: u64,
+}
+
+/// One line per sim host that sent something since the last report: chunks, rate, loss.
+fn report(hosts: &mut BTreeMap<u32, Host>, secs: f64) {
+    for (source, h) in hosts.iter_mut() {
+        let frames = h.received.frames - h.reported.frames;
+        let mb = (h.received.bytes - h.reported.bytes) as f64 / 1e6;
+        tracing::info!(
+            source,
+            chunks = frames,
+            last_chunk = h.last_chunk,
+            mb_per_s = format!("{:.2}", mb / secs.max(1e-9)),
+            lost = h.lost,
+            "rollouts from sim host"
+        );
+        h.reported = h.received;
+    }
+}
+
+fn receive_rollouts(
+    cfg: &Config,
+    run_id: &str,
+    session: &Session,
+    key: &Key,
+    stop: &Stop,
+) -> anyhow::Result<()> {
+    let bus = Bus::connect(run_id, "bridge-rollouts")?;
+    let control = bus.control_listener()?;
+    let n = cfg.sim.num_envs();
+    let max_len = cfg.ppo.rollout_steps(n) * n + n;
+    let tx = bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, max_len)?;
+    let chunks = session
+        .declare_subscriber(link::ROLLOUT_ALL)
+        .with(FifoChannel::new(64))
+        .wait()
+        .map_err(zerr("rollout subscriber"))?;
+    let sims = session
+        .liveliness()
+        .declare_subscriber(link::SIM_ALL)
+        .history(true)
+        .with(FifoChannel::new(16))
+        .wait()
+        .map_err(zerr("liveliness subscriber"))?;
+    let mut hosts: BTreeMap<u32, Host> = BTreeMap::new();
+    let mut refused = Refusals::new("rollout frame");
+    let mut reported = Instant::now();
+    while !stop.is_set() && !bus.stop_requested(&control) {
+        if reported.elapsed() >= REPORT_EVERY {
+            report(&mut hosts, reported.elapsed().as_secs_f64());
+            reported = Instant::now();
+        }
+        while let Some(s) = sims.try_recv().map_err(zerr("liveliness"))? {
+            let source = link::token_source(s.key_expr().as_str());
+            match s.kind() {
+                SampleKind::Put => tracing::info!(?source, "sim host joined"),
+                SampleKind::Delete => {
+                    tracing::warn!(?source, "sim host gone; training goes on with the others");
+                }
+            }
+        }
+        let Some(sample) = chunks
+            .recv_timeout(Duration::from_millis(50))
+            .map_err(zerr("rollout subscriber"))?
+        else {
+            continue;
+        };
+        let bytes = sample.payload().to_bytes();
+        let f = match frame::decode::<RolloutHeader, Transition>(key, Kind::Rollout, &bytes) {
+            Ok(f) => f,
+            Err(r) => {
+                refused.refuse(r.kind, &r.detail);
+                continue;
+            }
+        };
+        // An authenticated frame counts in its source's sequence, even if its chunk is refused.
+        let host = hosts.entry(f.source).or_default();
+        if f.seq > host.next_seq {
+            host.lost += f.seq - host.next_seq;
+            tracing::warn!(source = f.source, lost = host.lost, "rollout frames lost");
+        }
+        host.next_seq = host.next_seq.max(f.seq + 1);
+        // DESIGN §2: what a sim host sends is checked as a local chunk would be.
+        let refusal = if f.header.source != f.source {
+            Some("source mismatch")
+        } else if f.items.len() > max_len {
+            Some("larger than the run's chunks")
+        } else {
+            rollout::chunk_refusal(&f.header, &f.items)
+        };
+        if let Some(kind) = refusal {
+            refused.refuse(
+                kind,
+                &format!("source {} chunk {}", f.source, f.header.chunk),
+            );
+            continue;
+        }
+        host.received.add(bytes.len());
+        host.last_chunk = f.header.chunk;
+        tx.send(f.header, &f.items)?;
+    }
+    for (source, h) in &hosts {
+        tracing::info!(
+            source,
+            frames = h.received.frames,
+            bytes = h.received.bytes,
+            lost = h.lost,
+            "rollout frames received"
+        );
+    }
+    tracing::info!(refused = %refused.summary(), "learner host bridge done");
+    Ok(())
+}

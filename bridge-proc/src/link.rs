@@ -1,0 +1,96 @@
+//! The Zenoh side of a bridge: the session each side opens, and the key expressions of a
+//! run across hosts (DESIGN §9). The learner host's bridge is a Zenoh router listening on the
+//! run's endpoint; each sim host's bridge is a peer that connects to it, and that Zenoh
+//! reconnects by itself when the learner host comes back.
+
+use anyhow::Context;
+use zenoh::{Config, Session, Wait};
+
+/// Rollout chunks of sim host `source`.
+pub fn rollout_key(source: u32) -> String {
+    format!("lavatube/rollout/{source}")
+}
+/// Every sim host's rollout chunks.
+pub const ROLLOUT_ALL: &str = "lavatube/rollout/*";
+/// The policies of slot `slot` (`general`, `flat`, `rough`).
+pub fn policy_key(slot: &str) -> String {
+    format!("lavatube/policy/{slot}")
+}
+/// Every slot's policies; also the query a sim host sends for the newest ones.
+pub const POLICY_ALL: &str = "lavatube/policy/*";
+/// A sim host's liveliness token.
+pub fn sim_token(source: u32) -> String {
+    format!("lavatube/sim/{source}")
+}
+/// Every sim host's liveliness token.
+pub const SIM_ALL: &str = "lavatube/sim/*";
+/// The learner host's liveliness token: a sim host asks for policies again when it appears.
+pub const LEARNER_TOKEN: &str = "lavatube/learner";
+
+/// The source id in a sim token's key, `lavatube/sim/<source>`.
+pub fn token_source(key: &str) -> Option<u32> {
+    key.strip_prefix("lavatube/sim/")?.parse().ok()
+}
+
+/// A Zenoh config that stays on the endpoints given: no multicast scouting, no gossip.
+fn config(mode: &str, listen: &[&str], connect: &[&str]) -> anyhow::Result<Config> {
+    let list = |v: &[&str]| {
+        let quoted: Vec<String> = v.iter().map(|e| format!("{e:?}")).collect();
+        format!("[{}]", quoted.join(","))
+    };
+    let mut c = Config::default();
+    for (key, value) in [
+        ("mode", format!("{mode:?}")),
+        ("listen/endpoints", list(listen)),
+        ("connect/endpoints", list(connect)),
+        ("scouting/multicast/enabled", "false".into()),
+        ("scouting/gossip/enabled", "false".into()),
+        // Retry the learner host quickly: a sim host that (re)joins should have the newest
+        // policy within a second of the learner host being reachable.
+        (
+            "connect/retry",
+            "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}".into(),
+        ),
+    ] {
+        c.insert_json5(key, &value)
+            .map_err(|e| anyhow::anyhow!("zenoh config `{key}` = {value}: {e}"))?;
+    }
+    Ok(c)
+}
+
+fn open(c: Config, what: &str) -> anyhow::Result<Session> {
+    zenoh::open(c)
+        .wait()
+        .map_err(|e| anyhow::anyhow!("{e}"))
+        .with_context(|| format!("cannot open the Zenoh session {what}"))
+}
+
+/// The learner host's session: a router listening on `endpoint` (e.g. `tcp/0.0.0.0:7447`).
+pub fn listen(endpoint: &str) -> anyhow::Result<Session> {
+    open(
+        config("router", &[endpoint], &[])?,
+        &format!("listening on {endpoint}"),
+    )
+}
+
+/// A sim host's session: a peer that connects to the learner host at `endpoint`, retrying
+/// until it answers, and again whenever the connection is lost. It listens on an ephemeral
+/// loopback port only, so it is reachable from nowhere else.
+pub fn connect(endpoint: &str) -> anyhow::Result<Session> {
+    open(
+        config("peer", &["tcp/127.0.0.1:0"], &[endpoint])?,
+        &format!("to {endpoint}"),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_sim_token_names_its_source() {
+        assert_eq!(token_source(&sim_token(12)), Some(12));
+        assert_eq!(token_source("lavatube/sim/x"), None);
+        assert_eq!(rollout_key(3), "lavatube/rollout/3");
+    }
+}

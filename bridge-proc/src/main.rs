@@ -1,0 +1,5 @@
+//! The `bridge-proc` binary: everything lives in the library.
+
+fn main() -> std::process::ExitCode {
+    bridge_proc::main_with_args(std::env::args_os())
+}

@@ -1,0 +1,158 @@
+//! A learner host's bridge, run as its real process, against what a stranger on the network
+//! sends it (DESIGN §9): frames with a wrong key, of another kind, of other message types and
+//! with non-finite numbers are refused and counted, and a genuine chunk sent after them still
+//! reaches the learner host's shared memory, bit for bit.
+
+use bridge_proc::frame::{self, Key, Kind};
+use bridge_proc::link;
+use common::ipc::{self, Bus};
+use common::wire::{PolicyHeader, RolloutHeader};
+use common::{Config, Transition};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+use zenoh::Wait;
+use zenoh::qos::CongestionControl;
+
+const SECRET: &[u8] = b"the shared key of this test's run, 32+ bytes";
+
+/// Fails the test after `limit` instead of hanging.
+fn until(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
+    let started = Instant::now();
+    while !done() {
+        assert!(started.elapsed() < limit, "{what}: not within {limit:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_through() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let key_file = dir.path().join("run.key");
+    std::fs::write(&key_file, SECRET).expect("key");
+    let config = dir.path().join("config.toml");
+    std::fs::write(
+        &config,
+        format!("[net]\nkey-file = {:?}\n", key_file.display().to_string()),
+    )
+    .expect("config");
+    let cfg = Config::load(&config).expect("config");
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .expect("a free port")
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let run = format!("frames-{}", std::process::id());
+
+    let bus = Bus::connect(&run, "test").expect("node");
+    let chunks = bus.receiver(&ipc::ROLLOUT, None).expect("rollout receiver");
+    let control = bus.control_notifier().expect("control");
+    let log_path = dir.path().join("bridge.log");
+    let log = std::fs::File::create(&log_path).expect("log");
+    let mut bridge = Command::new(env!("CARGO_BIN_EXE_bridge-proc"))
+        .args([
+            "learner",
+            "--config",
+            &config.display().to_string(),
+            "--run-id",
+            &run,
+        ])
+        .args(["--listen", &endpoint])
+        .stdout(Stdio::null())
+        .stderr(Stdio::from(log))
+        .spawn()
+        .expect("bridge-proc starts");
+
+    let session = link::connect(&endpoint).expect("session");
+    let publisher = session
+        .declare_publisher(link::rollout_key(1))
+        .congestion_control(CongestionControl::Block)
+        .wait()
+        .expect("publisher");
+    until(Duration::from_secs(30), "the bridge subscribed", || {
+        publisher
+            .matching_status()
+            .wait()
+            .is_ok_and(|m| m.matching())
+    });
+
+    let n = cfg.sim.num_envs();
+    let t = cfg.ppo.rollout_steps(n);
+    let header = RolloutHeader {
+        chunk: 0,
+        env_steps: (t * n) as u64,
+        steps: t as u32,
+        envs: n as u32,
+        source: 1,
+        _reserved: 0,
+    };
+    let good: Vec<Transition> = (0..t * n + n)
+        .map(|i| Transition {
+            env: (i % n) as u32,
+            reward: i as f32 * 1e-3,
+            ..Transition::default()
+        })
+        .collect();
+    let mut nan = good.clone();
+    nan[3].reward = f32::NAN;
+    let (ours, stranger) = (Key::new(SECRET), Key::new(&[9u8; 32]));
+    let frames = [
+        // The refused frames reuse sequence number 0, so the genuine chunk's 1 follows the
+        // NaN chunk's 0 and no frame counts as lost.
+        frame::encode(&stranger, Kind::Rollout, 1, 0, &header, &good),
+        frame::encode(&ours, Kind::Policy, 1, 0, &header, &good),
+        frame::encode(
+            &ours,
+            Kind::Rollout,
+            1,
+            0,
+            &PolicyHeader::default(),
+            &[0.5f32; 8],
+        ),
+        frame::encode(&ours, Kind::Rollout, 1, 0, &header, &nan),
+        frame::encode(&ours, Kind::Rollout, 1, 1, &header, &good),
+    ];
+    for f in frames {
+        publisher.put(f).wait().expect("put");
+    }
+
+    let mut received = None;
+    until(Duration::from_secs(30), "the genuine chunk arrived", || {
+        let _ = chunks.wait(Duration::from_millis(10));
+        if let Some(s) = chunks.try_recv().expect("receive") {
+            received = Some((*s.user_header(), s.payload().to_vec()));
+        }
+        received.is_some()
+    });
+    let (h, items) = received.expect("a chunk");
+    assert_eq!(h, header);
+    assert!(
+        items
+            .iter()
+            .zip(&good)
+            .all(|(a, b)| a.reward.to_bits() == b.reward.to_bits() && a.env == b.env)
+    );
+    assert!(
+        chunks.try_recv().expect("receive").is_none(),
+        "only the genuine chunk"
+    );
+
+    ipc::request_shutdown(&control).expect("shutdown");
+    until(Duration::from_secs(30), "the bridge stopped", || {
+        bridge.try_wait().expect("poll").is_some()
+    });
+    let status = bridge.wait().expect("status");
+    let said = std::fs::read_to_string(&log_path).expect("log");
+    assert!(status.success(), "{status}\n{said}");
+    for counted in [
+        "wrong key: 1",
+        "wrong kind: 1",
+        "different message types: 1",
+        "non-finite value: 1",
+    ] {
+        assert!(said.contains(counted), "`{counted}` missing from:\n{said}");
+    }
+    assert!(
+        said.contains("lost=0"),
+        "no frame of source 1 went missing:\n{said}"
+    );
+}
