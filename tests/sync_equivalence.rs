@@ -1,6 +1,7 @@
 //! DESIGN §3: in sync mode the three-process runtime is classic on-policy PPO. The same seed
 //! gives bit-identical weights after k updates through shared memory as through a loop that
-//! runs the simulator and learner libraries in one process.
+//! runs the simulator and learner libraries in one process, and (DESIGN §9) as through a
+//! sim host whose chunks and policies cross Zenoh over TCP.
 
 use common::config::PolicySlot;
 use common::{ACT_DIM, Config, OBS_DIM, Policy, PolicyLayout};
@@ -73,6 +74,42 @@ fn sync_runtime_matches_the_in_process_loop_bit_for_bit() {
     assert_eq!(runtime.counters(), local.counters());
     assert!(runtime.counters().update >= 3);
     let (a, b) = (runtime.policy_weights(), local.policy_weights());
+    assert!(
+        a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+        "weights differ after {} updates",
+        local.counters().update
+    );
+}
+
+#[test]
+fn a_sim_behind_the_bridge_trains_the_same_weights() {
+    let root = support::root();
+    let cfg = Config::load(&root.join("configs/smoke.toml")).expect("smoke config");
+    let hosts = support::AcrossHosts::new(
+        "configs/smoke.toml",
+        &format!("bridged-{}", std::process::id()),
+        1,
+    );
+    let (learner_id, sim_id) = (
+        format!("bridged-l-{}", std::process::id()),
+        format!("bridged-s-{}", std::process::id()),
+    );
+    let learner = hosts.learner_host(&learner_id);
+    let sim = hosts.sim_host(&sim_id, 1);
+    let (code, sim_said) = sim.wait();
+    assert_eq!(code, 0, "the sim host failed:\n{sim_said}");
+    let (code, learner_said) = learner.wait();
+    assert_eq!(code, 0, "the learner host failed:\n{learner_said}");
+    let run = root.join("target/e2e-runs").join(&learner_id);
+    let (bridged, _) = Learner::resume(&cfg, &run.join("checkpoints"))
+        .expect("the learner host's last checkpoint");
+    let log =
+        std::fs::read_to_string(common::run_dir::log_file(&run, "learner")).expect("learner log");
+    assert!(log.contains("source 1: 3 chunks (0 missed)"), "{log}");
+
+    let local = train_in_process(&cfg);
+    assert_eq!(bridged.counters(), local.counters());
+    let (a, b) = (bridged.policy_weights(), local.policy_weights());
     assert!(
         a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
         "weights differ after {} updates",

@@ -23,8 +23,11 @@ pub struct Cli {
 
 #[derive(Debug, clap::Subcommand)]
 pub enum Command {
-    /// Train: start the simulator, learner and estimator of a new run and supervise them.
+    /// Train: start the simulator, learner and estimator of a new run and supervise them
+    /// (with `--listen`, only the learners: sim hosts join over the network).
     Run(run::RunArgs),
+    /// Be a sim host of a run across hosts: its sim, estimator and a bridge to the learner host.
+    Join(run::JoinArgs),
     /// The paper's experiment end to end, stage by stage (resumable): models, Table 3, Table 1.
     Reproduce(reproduce::ReproduceArgs),
     /// Replace a running run's learner (new hyperparameters or checkpoint); the sim keeps going.
@@ -58,6 +61,7 @@ pub enum Command {
 pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Run(args) => run::run(args),
+        Command::Join(args) => run::join(args),
         Command::Reproduce(args) => reproduce::reproduce(args),
         Command::SwapLearner(args) => swap::swap_learner_command(args),
         Command::Analyze(args) => analyze::analyze(args),

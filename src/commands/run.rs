@@ -1,7 +1,9 @@
-//! `lavatube run`: one training run (see [`Run`]). Validates the config before anything
-//! starts, then runs it to the end and prints its summary.
+//! `lavatube run`: one training run (see [`Run`]), on one host or, with `--listen`, as the
+//! learner host of a run across hosts; `lavatube join`: a sim host of such a run (DESIGN §9).
+//! Both validate the config before anything starts, then run to the end and print a summary.
 
-use crate::runtime::{ResumedConfig, Run, report_sweep};
+use crate::error::UserError;
+use crate::runtime::{Host, ResumedConfig, Run, report_sweep};
 use common::Config;
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -25,6 +27,30 @@ pub struct RunArgs {
     /// from. What was learned after the last checkpoint is lost.
     #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["config", "run_id"])]
     pub resume: Option<PathBuf>,
+    /// Be the learner host of a run across hosts: run the learners here, and a bridge that
+    /// listens on this Zenoh endpoint (tcp/HOST:PORT) for sim hosts (`lavatube join`). Needs
+    /// `net.key-file`.
+    #[arg(long, value_name = "ENDPOINT", value_parser = common::cli::parse_endpoint, conflicts_with = "resume")]
+    pub listen: Option<String>,
+}
+
+#[derive(Debug, clap::Args)]
+pub struct JoinArgs {
+    /// Config file (TOML): the learner host's, with the same `net.key-file` contents.
+    #[arg(long)]
+    pub config: PathBuf,
+    /// The learner host's Zenoh endpoint, tcp/HOST:PORT (`lavatube run --listen`).
+    #[arg(long, value_name = "ENDPOINT", value_parser = common::cli::parse_endpoint)]
+    pub connect: String,
+    /// This host's source id, unique among the run's sim hosts; its chunks carry it. 1 ..= 65535.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=65535))]
+    pub source: u32,
+    /// Run id on this host (the run directory's name). Default: a new one.
+    #[arg(long, value_parser = common::cli::parse_run_id)]
+    pub run_id: Option<String>,
+    /// No progress bar (for logs and CI).
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// A fresh run id: seconds since the epoch and the launcher's pid, in base 36-ish hex.
@@ -47,8 +73,35 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         None => Config::default(),
     };
     let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
-    let completed = execute(&cfg, &run_id, &run_id, args.quiet)?;
+    let host = match args.listen {
+        Some(listen) => across_hosts(&cfg, Host::Learner { listen })?,
+        None => Host::Whole,
+    };
+    let completed = execute(&cfg, &run_id, &run_id, args.quiet, host)?;
     Ok(exit_code(completed))
+}
+
+/// `lavatube join`: this host's sim, estimator and bridge, feeding the learner host.
+pub fn join(args: JoinArgs) -> anyhow::Result<ExitCode> {
+    let cfg = Config::load(&args.config)?;
+    let host = across_hosts(
+        &cfg,
+        Host::Sim {
+            connect: args.connect,
+            source: args.source,
+        },
+    )?;
+    let run_id = args.run_id.unwrap_or_else(new_run_id);
+    let completed = execute(&cfg, &run_id, &run_id, args.quiet, host)?;
+    Ok(exit_code(completed))
+}
+
+/// `host`, once the config can run across hosts: it names a readable shared key.
+fn across_hosts(cfg: &Config, host: Host) -> anyhow::Result<Host> {
+    cfg.net
+        .read_key()
+        .map_err(|e| UserError(format!("a run across hosts: {e}")))?;
+    Ok(host)
 }
 
 /// 130 (as a shell reports SIGINT) for a run stopped by Ctrl-C, else success.
@@ -60,11 +113,19 @@ fn exit_code(completed: bool) -> ExitCode {
     }
 }
 
-/// Runs `cfg` in `<run.out-dir>/<dir_name>/` to the end, its processes meeting in the shared
-/// memory of run `run_id`, after removing what dead runs left. Returns false when
-/// interrupted (Ctrl-C).
-pub fn execute(cfg: &Config, dir_name: &str, run_id: &str, quiet: bool) -> anyhow::Result<bool> {
+/// Runs `host`'s part of `cfg` in `<run.out-dir>/<dir_name>/` to the end, its processes
+/// meeting in the shared memory of run `run_id`, after removing what dead runs left.
+/// Returns false when interrupted (Ctrl-C).
+pub fn execute(
+    cfg: &Config,
+    dir_name: &str,
+    run_id: &str,
+    quiet: bool,
+    host: Host,
+) -> anyhow::Result<bool> {
     report_sweep();
-    let finished = Run::prepare(cfg, dir_name, run_id, quiet)?.execute()?;
+    let finished = Run::prepare(cfg, dir_name, run_id, quiet)?
+        .on_host(host)
+        .execute()?;
     Ok(!finished.interrupted)
 }

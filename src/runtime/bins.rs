@@ -31,6 +31,7 @@ pub struct Binaries {
     pub sim: PathBuf,
     pub learner: PathBuf,
     pub estimator: PathBuf,
+    pub bridge: PathBuf,
     /// This launcher, for its hidden bench subcommands.
     pub launcher: PathBuf,
 }
@@ -41,6 +42,7 @@ impl Binaries {
             sim: locate("sim-proc")?,
             learner: locate("learner-proc")?,
             estimator: locate("estimator-proc")?,
+            bridge: locate("bridge-proc")?,
             launcher: std::env::current_exe().context("cannot find the launcher's executable")?,
         })
     }
@@ -50,6 +52,7 @@ impl Binaries {
             Role::Learner(_) => &self.learner,
             Role::Estimator => &self.estimator,
             Role::Sim => &self.sim,
+            Role::Bridge => &self.bridge,
             Role::Reader | Role::Echo => &self.launcher,
         }
     }

@@ -5,6 +5,7 @@
 
 mod bins;
 mod child;
+mod host;
 pub mod ladder;
 mod role;
 mod run;
@@ -15,6 +16,7 @@ mod sweep;
 
 pub use bins::{Binaries, locate};
 pub use child::{Child, Output, Usage};
+pub use host::Host;
 pub use role::Role;
 pub use run::{Finished, LAUNCHER_NODE, ResumedConfig, Run};
 pub use summary::{MeanStd, Progress, Summary};

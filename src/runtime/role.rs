@@ -13,6 +13,8 @@ pub enum Role {
     Estimator,
     /// Steps the envs and acts (SPEC S1–S5).
     Sim,
+    /// Carries rollout chunks and policies between the hosts of a run (DESIGN §9).
+    Bridge,
     /// `lavatube bench`'s reading process: counts every telemetry tick and rollout chunk.
     Reader,
     /// `lavatube bench`'s receiving end of the transport comparison.
@@ -26,6 +28,7 @@ impl Role {
             Self::Learner(slot) => slot.learner_name(),
             Self::Estimator => "estimator",
             Self::Sim => "sim",
+            Self::Bridge => "bridge",
             Self::Reader => "reader",
             Self::Echo => "echo",
         }
@@ -48,6 +51,7 @@ mod tests {
             Role::Learner(PolicySlot::Rough),
             Role::Estimator,
             Role::Sim,
+            Role::Bridge,
             Role::Reader,
             Role::Echo,
         ];

@@ -4,7 +4,7 @@
 //! shared memory removed and `summary.json` written.
 
 use super::swap::{SwapContext, learner_args, swap_learner};
-use super::{Binaries, Event, Progress, Role, Spec, Summary, Supervised, ladder, say};
+use super::{Binaries, Event, Host, Progress, Role, Spec, Summary, Supervised, ladder, say};
 use crate::error::UserError;
 use anyhow::Context;
 use common::config::PolicySlot;
@@ -29,6 +29,8 @@ pub struct Run<'a> {
     bar: ProgressBar,
     /// Going on from the run directory's checkpoints (`lavatube run --resume`).
     resume: bool,
+    /// This host's part of the run.
+    host: Host,
 }
 
 /// A run directory to resume: its resolved config, and its run id (the directory's name).
@@ -148,15 +150,22 @@ impl<'a> Run<'a> {
             bins,
             bar,
             resume: false,
+            host: Host::Whole,
         })
+    }
+
+    /// Runs only this host's part of the run (DESIGN §9).
+    pub fn on_host(mut self, host: Host) -> Self {
+        self.host = host;
+        self
     }
 
     pub fn dir(&self) -> &Path {
         &self.dir
     }
 
-    /// Every process of the run: learners (then frozen ones), estimator, sim last, so the
-    /// sim's first chunk finds its readers.
+    /// Every process of this host's part of the run: learners (then frozen ones),
+    /// estimator, bridge, sim last, so the sim's first chunk finds its readers.
     fn specs(&self) -> Vec<Spec> {
         let (cfg, sup) = (self.cfg, &self.cfg.supervise);
         let join = |extra: &[&str]| -> Vec<String> {
@@ -181,6 +190,9 @@ impl<'a> Run<'a> {
             .iter()
             .map(|&slot| {
                 let mut join = join(&["serve", "--slot", slot.name()]);
+                if let Host::Learner { .. } = self.host {
+                    join.extend(["--sources".into(), cfg.net.sim_hosts.to_string()]);
+                }
                 if let Some(init) = &cfg.run.init_from {
                     join.extend(["--init-from".into(), init.display().to_string()]);
                 }
@@ -194,9 +206,17 @@ impl<'a> Run<'a> {
             spec(Role::Learner(slot), args, sup.learner)
         }));
         specs.push(spec(Role::Estimator, join(&["serve"]), sup.estimator));
+        if let Some(args) = self.host.bridge_args() {
+            let args: Vec<&str> = args.iter().map(String::as_str).collect();
+            // The bridge restarts like a learner: its peers on the other hosts wait for it.
+            specs.push(spec(Role::Bridge, join(&args), sup.learner));
+        }
         let mut sim_args = join(&[]);
         if self.resume {
             sim_args.push("--resume".into());
+        }
+        if self.host.source() != 0 {
+            sim_args.extend(["--source".into(), self.host.source().to_string()]);
         }
         if cfg.run.telemetry_csv {
             sim_args.extend([
@@ -205,6 +225,7 @@ impl<'a> Run<'a> {
             ]);
         }
         specs.push(spec(Role::Sim, sim_args, sup.sim));
+        specs.retain(|s| self.host.starts(s.role));
         specs
     }
 
@@ -359,14 +380,20 @@ impl Supervision<'_, '_> {
                     say(&self.run.bar, format!("swap-learner: cannot reply: {e:?}"));
                 }
             }
-            let learner_alive = self
-                .members
-                .iter()
-                .any(|s| s.role().is_learner() && s.alive());
-            // Once the sim is done the learner gets one grace period to learn from the last chunk.
-            let learner_late = self.sim_finished.is_some_and(|t| t.elapsed() > self.grace);
+            let alive = |pick: &dyn Fn(Role) -> bool| {
+                self.members.iter().any(|s| pick(s.role()) && s.alive())
+            };
+            // What takes the sim's last chunk: the learners, or on a sim host its bridge,
+            // which ends once that chunk is out.
+            let taker_alive = alive(&|r| r.is_learner() || r == Role::Bridge);
+            // Once the sim is done they get one grace period to take the last chunk.
+            let taker_late = self.sim_finished.is_some_and(|t| t.elapsed() > self.grace);
+            // A learner host has no sim: its run ends when its learners have finished.
+            let learner_host_done =
+                !self.run.host.starts(Role::Sim) && !alive(&|r: Role| r.is_learner());
             if self.failed.is_some()
-                || (self.sim_finished.is_some() && (!learner_alive || learner_late))
+                || learner_host_done
+                || (self.sim_finished.is_some() && (!taker_alive || taker_late))
             {
                 return Ok(false);
             }
@@ -389,11 +416,14 @@ impl Supervision<'_, '_> {
                 let h = s.user_header();
                 let w = self.progress.write_failures.entry(*slot).or_default();
                 w.saw(h.learner, h.write_failures);
+                self.progress.learned_steps = self.progress.learned_steps.max(h.env_steps);
             }
         }
         let p = &self.progress;
         let bar = &self.run.bar;
-        bar.set_position(p.tick.env_steps.min(self.run.cfg.run.total_steps));
+        // A learner host sees no telemetry: its progress is what its learners learned from.
+        let steps = p.tick.env_steps.max(p.learned_steps);
+        bar.set_position(steps.min(self.run.cfg.run.total_steps));
         bar.set_message(format!(
             "v{} success {:.0}% terrain {}",
             p.tick.policy_version,

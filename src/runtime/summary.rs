@@ -17,6 +17,8 @@ pub struct Progress {
     pub both_areas: bool,
     /// Per policy slot, the learners' failed checkpoint and metrics writes.
     pub write_failures: BTreeMap<PolicySlot, WriteFailures>,
+    /// The most env steps a learner's policy has learned from, over every sim it hears.
+    pub learned_steps: u64,
 }
 
 /// One slot's failed writes, summed over the learner processes that served it (each counts
@@ -99,7 +101,8 @@ impl Summary {
         wall_seconds: f64,
         learner_swaps: u32,
     ) -> Self {
-        let env_steps = progress.tick.env_steps;
+        // On a learner host, which sees no telemetry, the steps its learners learned from.
+        let env_steps = progress.tick.env_steps.max(progress.learned_steps);
         let episodes = progress.episodes();
         Self {
             run_id: run_id.to_string(),

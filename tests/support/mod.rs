@@ -31,10 +31,28 @@ impl Launched {
     /// `lavatube run ARGS… --quiet` from the repository root, its output in a file named
     /// after `tag`.
     pub fn run(args: &[&str], tag: &str) -> Self {
+        Self::command(&["run"], args, tag)
+    }
+
+    /// `lavatube PREFIX… ARGS… --quiet` from the repository root (PREFIX may wrap the
+    /// launcher, e.g. `ip netns exec NS`), its output in a file named after `tag`.
+    pub fn command(prefix: &[&str], args: &[&str], tag: &str) -> Self {
         let log_path = std::env::temp_dir().join(format!("lavatube-test-{tag}.log"));
         let log = std::fs::File::create(&log_path).expect("log file");
-        let child = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-            .arg("run")
+        let (program, rest): (&str, Vec<&str>) = match prefix {
+            [sub] => (env!("CARGO_BIN_EXE_lavatube"), vec![*sub]),
+            [wrapper @ .., sub] => (
+                wrapper[0],
+                wrapper[1..]
+                    .iter()
+                    .copied()
+                    .chain([env!("CARGO_BIN_EXE_lavatube"), *sub])
+                    .collect(),
+            ),
+            [] => panic!("no subcommand"),
+        };
+        let child = Command::new(program)
+            .args(rest)
             .args(args)
             .arg("--quiet")
             .current_dir(root())
@@ -117,4 +135,84 @@ impl Watch {
             bus,
         }
     }
+}
+
+/// A run across hosts on this machine (DESIGN §9): a config with a shared key, and a free
+/// loopback port for the learner host's bridge.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub struct AcrossHosts {
+    pub config: String,
+    pub endpoint: String,
+    dir: PathBuf,
+}
+
+#[allow(dead_code)]
+impl AcrossHosts {
+    /// `base` (a config path from the repository root) with a `[net]` section added: a key
+    /// file and `sim-hosts`; `tag` names its directory under target/e2e-runs.
+    pub fn new(base: &str, tag: &str, sim_hosts: u32) -> Self {
+        let dir = root().join("target/e2e-runs").join(format!("{tag}-hosts"));
+        std::fs::create_dir_all(&dir).expect("hosts dir");
+        let key = dir.join("run.key");
+        std::fs::write(&key, b"a shared secret of this test run, 32+ bytes").expect("key");
+        let text = std::fs::read_to_string(root().join(base)).expect("base config");
+        let config = dir.join("config.toml");
+        let net = format!(
+            "\n[net]\nkey-file = {:?}\nsim-hosts = {sim_hosts}\n",
+            key.display().to_string()
+        );
+        std::fs::write(&config, text + &net).expect("config");
+        Self {
+            config: config.display().to_string(),
+            endpoint: format!("tcp/127.0.0.1:{}", free_port()),
+            dir,
+        }
+    }
+
+    /// `lavatube run --listen`: the learner host.
+    pub fn learner_host(&self, run_id: &str) -> Launched {
+        Launched::run(
+            &[
+                "--config",
+                &self.config,
+                "--run-id",
+                run_id,
+                "--listen",
+                &self.endpoint,
+            ],
+            run_id,
+        )
+    }
+
+    /// `lavatube join`: a sim host with source id `source`.
+    pub fn sim_host(&self, run_id: &str, source: u32) -> Launched {
+        let source = source.to_string();
+        Launched::command(
+            &["join"],
+            &[
+                "--config",
+                &self.config,
+                "--run-id",
+                run_id,
+                "--connect",
+                &self.endpoint,
+                "--source",
+                &source,
+            ],
+            run_id,
+        )
+    }
+}
+
+impl Drop for AcrossHosts {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.dir);
+    }
+}
+
+/// A TCP port on 127.0.0.1 that was free a moment ago.
+#[allow(dead_code)]
+pub fn free_port() -> u16 {
+    let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
+    l.local_addr().expect("addr").port()
 }

@@ -153,7 +153,13 @@ impl Pipeline {
             cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
             cfg.estimator.refit_every = 0;
             cfg.validate()?;
-            if !execute(&cfg, name, &self.run_id(name), self.quiet)? {
+            if !execute(
+                &cfg,
+                name,
+                &self.run_id(name),
+                self.quiet,
+                runtime::Host::Whole,
+            )? {
                 anyhow::bail!("interrupted during {name}; run again to resume");
             }
             Ok(eval.join(name).join(TELEMETRY_CSV))

@@ -65,7 +65,13 @@ impl Pipeline {
                 .map(|s| s.name())
                 .collect::<Vec<_>>()
         ));
-        if !execute(&cfg, name, &self.run_id(name), self.quiet)? {
+        if !execute(
+            &cfg,
+            name,
+            &self.run_id(name),
+            self.quiet,
+            runtime::Host::Whole,
+        )? {
             anyhow::bail!("interrupted during stage {name}; run again to resume");
         }
         self.finish(name, serde_json::json!({ "stage": name }))
