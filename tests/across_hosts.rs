@@ -234,6 +234,36 @@ fn watch_for(w: &support::Watch, seen: &mut Vec<u32>, d: Duration) {
     }
 }
 
+/// What `lavatube status` says about the sim hosts of learner-host run `run`.
+fn status_of(run: &str) -> String {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lavatube"))
+        .arg("status")
+        .output()
+        .expect("lavatube status");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let from = text.find(&format!("run {run}:")).unwrap_or(text.len());
+    let section = &text[from..];
+    let end = section[1..].find("\nrun ").map_or(section.len(), |i| i + 1);
+    section[..end].to_string()
+}
+
+/// Waits until `lavatube status` lists every line of `want` for run `run` (the bridge
+/// publishes its table every second).
+fn until_status(run: &str, want: &[&str]) {
+    let started = Instant::now();
+    loop {
+        let said = status_of(run);
+        if want.iter().all(|w| said.contains(w)) {
+            return;
+        }
+        assert!(
+            started.elapsed() < Duration::from_secs(20),
+            "{want:?} not in lavatube status:\n{said}"
+        );
+        std::thread::sleep(Duration::from_millis(300));
+    }
+}
+
 /// SIGKILL to `pids`.
 fn kill_all(pids: &[i32]) {
     for &pid in pids {
@@ -266,6 +296,10 @@ fn a_dead_sim_host_is_reported_gone_rejoins_and_a_killed_learner_resumes_while_s
     until_bridge_says(&log, minute, "both sim hosts' chunks arrive", |t| {
         chunks_after_join(t, 1, 0) > 0 && chunks_after_join(t, 2, 0) > 0
     });
+    until_status(
+        &learner_run,
+        &["source 1     joined", "source 2     joined"],
+    );
 
     // A sim host dies whole: its launcher and every process of its run, at once.
     let mut doomed: Vec<i32> = common::ipc::list_nodes(&sim2_run)
@@ -280,6 +314,7 @@ fn a_dead_sim_host_is_reported_gone_rejoins_and_a_killed_learner_resumes_while_s
         t.lines()
             .any(|l| l.contains("sim host gone") && l.contains("source=Some(2)"))
     });
+    until_status(&learner_run, &["source 1     joined", "source 2     gone"]);
     let mut seen = Vec::new();
     let before = newest_version(&learner, &mut seen).unwrap_or(0);
     let started = Instant::now();
@@ -363,4 +398,46 @@ fn a_dead_sim_host_is_reported_gone_rejoins_and_a_killed_learner_resumes_while_s
     drop((learner, sim1));
     let (code, said) = learner_host.wait_interrupted();
     assert_eq!(code, 130, "{said}");
+}
+
+/// One sync run of a learner host and two sim hosts on smoke.toml; the learner's last
+/// checkpoint and its log.
+fn sync_run_across_two_hosts(tag: &str) -> (Learner, String) {
+    let hosts = support::AcrossHosts::new("configs/smoke.toml", tag, 2);
+    let learner_run = format!("{tag}-l");
+    let learner = hosts.learner_host(&learner_run);
+    // Source 2 starts first: the round's order must not depend on who comes first.
+    let sims = [2, 1].map(|source| hosts.sim_host(&format!("{tag}-s{source}"), source));
+    for sim in sims {
+        let (code, said) = sim.wait();
+        assert_eq!(code, 0, "a sim host failed:\n{said}");
+    }
+    let (code, said) = learner.wait();
+    assert_eq!(code, 0, "the learner host failed:\n{said}");
+    let root = support::root();
+    let dir = root.join("target/e2e-runs").join(&learner_run);
+    let cfg = Config::load(&root.join("configs/smoke.toml")).expect("config");
+    let (learner, _) = Learner::resume(&cfg, &dir.join(run_dir::CHECKPOINTS)).expect("checkpoint");
+    let log = std::fs::read_to_string(run_dir::log_file(&dir, "learner")).expect("learner log");
+    (learner, log)
+}
+
+#[test]
+fn sync_across_two_sim_hosts_is_one_update_per_round_and_reproducible_from_the_seed() {
+    let pid = std::process::id();
+    let (a, log) = sync_run_across_two_hosts(&format!("round-a-{pid}"));
+    assert!(
+        log.contains("source 1: 3 chunks (0 missed), source 2: 3 chunks (0 missed)"),
+        "{log}"
+    );
+    // smoke.toml: 3072 steps per host in chunks of 1024; a round is one chunk of each.
+    assert_eq!(a.counters().update, 3, "one update per round");
+    assert_eq!(a.counters().global_step, 2 * 3072);
+    let (b, _) = sync_run_across_two_hosts(&format!("round-b-{pid}"));
+    assert_eq!(a.counters(), b.counters());
+    let (wa, wb) = (a.policy_weights(), b.policy_weights());
+    assert!(
+        wa.iter().zip(&wb).all(|(x, y)| x.to_bits() == y.to_bits()),
+        "the same seed gave other weights"
+    );
 }

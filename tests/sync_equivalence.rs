@@ -14,15 +14,17 @@ use sim_proc::{Fleet, SharedTerrain};
 
 mod support;
 
-/// The in-process loop: act for T steps, update, hand the new weights to the driver.
-fn train_in_process(cfg: &Config) -> Learner {
+/// The in-process loop: act for T steps, update, hand the new weights to the driver. The
+/// sim's seed is that of the sim with `source` id (0 beside the learner).
+fn train_in_process(cfg: &Config, source: u32) -> Learner {
     let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
     let mut learner = Learner::new(cfg, layout.clone(), cfg.run.seed).expect("learner");
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain).expect("terrain"));
-    let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
+    let sim_seed = common::Rng::source_seed(cfg.run.seed, source);
+    let mut fleet = Fleet::new(&cfg.sim, &terrain, sim_seed);
     let policy =
         Policy::new(layout, learner.policy_weights(), cfg.ppo.obs_clip as f32).expect("policy");
-    let ctrl = PolicyController::new(policy, true, cfg.run.seed);
+    let ctrl = PolicyController::new(policy, true, sim_seed);
     let mut policies = PolicySet::new(PolicySlot::General, ctrl, learner.policy_version());
     let mut driver = Driver::new(&fleet);
     let (n, t) = (fleet.len(), cfg.ppo.rollout_steps(fleet.len()));
@@ -70,7 +72,7 @@ fn sync_runtime_matches_the_in_process_loop_bit_for_bit() {
         .join("checkpoints");
     let (runtime, _) = Learner::resume(&cfg, &dir).expect("the runtime's last checkpoint");
 
-    let local = train_in_process(&cfg);
+    let local = train_in_process(&cfg, 0);
     assert_eq!(runtime.counters(), local.counters());
     assert!(runtime.counters().update >= 3);
     let (a, b) = (runtime.policy_weights(), local.policy_weights());
@@ -107,7 +109,7 @@ fn a_sim_behind_the_bridge_trains_the_same_weights() {
         std::fs::read_to_string(common::run_dir::log_file(&run, "learner")).expect("learner log");
     assert!(log.contains("source 1: 3 chunks (0 missed)"), "{log}");
 
-    let local = train_in_process(&cfg);
+    let local = train_in_process(&cfg, 1);
     assert_eq!(bridged.counters(), local.counters());
     let (a, b) = (bridged.policy_weights(), local.policy_weights());
     assert!(

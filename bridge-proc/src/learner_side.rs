@@ -1,14 +1,15 @@
 //! The learner host's bridge (DESIGN §9): republishes every sim host's rollout chunks on the
 //! local `rollout` service, and forwards the local learners' policies to the sim hosts,
-//! answering a sim host's query with the newest policy of each slot. It lists the sim hosts
-//! as they join and leave (Zenoh liveliness).
+//! answering a sim host's query with the newest policy of each slot. It logs the sim hosts
+//! as they join and leave (Zenoh liveliness) and what each sent, and publishes that table
+//! every second on the local `hosts` service for `lavatube status`.
 
 use crate::frame::{self, Key, Kind};
 use crate::{Counts, Stop, link};
 use common::config::PolicySlot;
-use common::ipc::{self, Bus, Receiver};
+use common::ipc::{self, Bus, Receiver, Sender};
 use common::refusals::Refusals;
-use common::wire::{PolicyHeader, RolloutHeader};
+use common::wire::{HostsHeader, PolicyHeader, RolloutHeader, SimHost};
 use common::{Config, Transition, rollout};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
@@ -129,35 +130,77 @@ fn forward_policies(
     Ok(())
 }
 
-/// How often the bridge logs what each sim host sent.
-const REPORT_EVERY: Duration = Duration::from_secs(10);
+/// How often the bridge logs what each sim host sent, and publishes it on `hosts`.
+const LOG_EVERY: Duration = Duration::from_secs(10);
+const PUBLISH_EVERY: Duration = Duration::from_secs(1);
+/// Most sim hosts a `hosts` message lists (`net.sim-hosts` allows as many).
+const MAX_HOSTS: usize = 1024;
 
 /// What has come from one sim host.
 #[derive(Debug, Default)]
 struct Host {
+    joined: bool,
     next_seq: u64,
     lost: u64,
     received: Counts,
-    /// `received` at the last report.
-    reported: Counts,
     last_chunk: u64,
+    env_steps: u64,
+    /// `received` at the last log line.
+    logged: Counts,
+    /// `received` and `env_steps` at the last `hosts` message.
+    published: (Counts, u64),
 }
 
-/// One line per sim host that sent something since the last report: chunks, rate, loss.
-fn report(hosts: &mut BTreeMap<u32, Host>, secs: f64) {
+/// One line per sim host: chunks since the last line, rate, loss.
+fn log_hosts(hosts: &mut BTreeMap<u32, Host>, secs: f64) {
     for (source, h) in hosts.iter_mut() {
-        let frames = h.received.frames - h.reported.frames;
-        let mb = (h.received.bytes - h.reported.bytes) as f64 / 1e6;
+        let frames = h.received.frames - h.logged.frames;
+        let mb = (h.received.bytes - h.logged.bytes) as f64 / 1e6;
         tracing::info!(
             source,
             chunks = frames,
             last_chunk = h.last_chunk,
             mb_per_s = format!("{:.2}", mb / secs.max(1e-9)),
             lost = h.lost,
+            joined = h.joined,
             "rollouts from sim host"
         );
-        h.reported = h.received;
+        h.logged = h.received;
     }
+}
+
+/// The table of sim hosts, with their rates over the last `secs`.
+fn publish_hosts(
+    tx: &Sender<SimHost, HostsHeader>,
+    hosts: &mut BTreeMap<u32, Host>,
+    secs: f64,
+) -> anyhow::Result<()> {
+    let per_s = |x: u64| (x as f64 / secs.max(1e-9)) as f32;
+    let table: Vec<SimHost> = hosts
+        .iter_mut()
+        .take(MAX_HOSTS)
+        .map(|(&source, h)| {
+            let (counts, steps) = h.published;
+            h.published = (h.received, h.env_steps);
+            SimHost {
+                source,
+                joined: u32::from(h.joined),
+                chunks: h.received.frames,
+                last_chunk: h.last_chunk,
+                env_steps: h.env_steps,
+                lost: h.lost,
+                steps_per_s: per_s(h.env_steps.saturating_sub(steps)),
+                bytes_per_s: per_s(h.received.bytes - counts.bytes),
+            }
+        })
+        .collect();
+    let header = HostsHeader {
+        sent_ns: common::wire::monotonic_ns(),
+        hosts: table.len() as u32,
+        _reserved: 0,
+    };
+    tx.send(header, &table)?;
+    Ok(())
 }
 
 fn receive_rollouts(
@@ -172,6 +215,7 @@ fn receive_rollouts(
     let n = cfg.sim.num_envs();
     let max_len = cfg.ppo.rollout_steps(n) * n + n;
     let tx = bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, max_len)?;
+    let hosts_tx = bus.sender::<SimHost, HostsHeader>(&ipc::HOSTS, None, MAX_HOSTS)?;
     let chunks = session
         .declare_subscriber(link::ROLLOUT_ALL)
         .with(FifoChannel::new(64))
@@ -186,19 +230,27 @@ fn receive_rollouts(
         .map_err(zerr("liveliness subscriber"))?;
     let mut hosts: BTreeMap<u32, Host> = BTreeMap::new();
     let mut refused = Refusals::new("rollout frame");
-    let mut reported = Instant::now();
+    let (mut logged, mut published) = (Instant::now(), Instant::now());
     while !stop.is_set() && !bus.stop_requested(&control) {
-        if reported.elapsed() >= REPORT_EVERY {
-            report(&mut hosts, reported.elapsed().as_secs_f64());
-            reported = Instant::now();
+        hosts_tx.update_connections()?;
+        if logged.elapsed() >= LOG_EVERY {
+            log_hosts(&mut hosts, logged.elapsed().as_secs_f64());
+            logged = Instant::now();
+        }
+        if published.elapsed() >= PUBLISH_EVERY {
+            publish_hosts(&hosts_tx, &mut hosts, published.elapsed().as_secs_f64())?;
+            published = Instant::now();
         }
         while let Some(s) = sims.try_recv().map_err(zerr("liveliness"))? {
             let source = link::token_source(s.key_expr().as_str());
-            match s.kind() {
-                SampleKind::Put => tracing::info!(?source, "sim host joined"),
-                SampleKind::Delete => {
-                    tracing::warn!(?source, "sim host gone; training goes on with the others");
-                }
+            let joined = s.kind() == SampleKind::Put;
+            if joined {
+                tracing::info!(?source, "sim host joined");
+            } else {
+                tracing::warn!(?source, "sim host gone; training goes on with the others");
+            }
+            if let Some(source) = source {
+                hosts.entry(source).or_default().joined = joined;
             }
         }
         let Some(sample) = chunks
@@ -239,6 +291,7 @@ fn receive_rollouts(
         }
         host.received.add(bytes.len());
         host.last_chunk = f.header.chunk;
+        host.env_steps = f.header.env_steps;
         tx.send(f.header, &f.items)?;
     }
     for (source, h) in &hosts {

@@ -41,6 +41,17 @@ impl Rng {
         Self::new(splitmix64(&mut x))
     }
 
+    /// The seed of the sim with source id `source` (DESIGN §9): `seed` itself for the sim
+    /// beside the learner (0), so a run on one host is the run it always was; a seed of its
+    /// own for each sim host, so no two hosts step the same episodes.
+    pub fn source_seed(seed: u64, source: u32) -> u64 {
+        if source == 0 {
+            return seed;
+        }
+        let mut x = seed ^ u64::from(source).wrapping_mul(0xA076_1D64_78BD_642F);
+        splitmix64(&mut x)
+    }
+
     pub fn next_u64(&mut self) -> u64 {
         let s = &mut self.s;
         let result = s[0].wrapping_add(s[3]).rotate_left(23).wrapping_add(s[0]);
@@ -89,6 +100,15 @@ impl Rng {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn each_source_gets_its_own_seed_and_source_0_keeps_the_runs() {
+        assert_eq!(Rng::source_seed(7, 0), 7);
+        let seeds: std::collections::BTreeSet<u64> =
+            (0..64).map(|s| Rng::source_seed(7, s)).collect();
+        assert_eq!(seeds.len(), 64, "distinct per source");
+        assert_eq!(Rng::source_seed(7, 3), Rng::source_seed(7, 3), "and fixed");
+    }
 
     #[test]
     fn same_seed_same_stream_and_streams_differ() {

@@ -218,6 +218,41 @@ pub struct TerrainEstimate {
     pub window: u32,
 }
 
+// ---- learner host's bridge → `lavatube status`: `hosts` -----------------------------------
+
+/// Header of the sim hosts a learner host hears (DESIGN §9); the slice holds one
+/// [`SimHost`] per source seen.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.HostsHeader.v1")]
+pub struct HostsHeader {
+    /// When the bridge wrote it, [`monotonic_ns`].
+    pub sent_ns: u64,
+    pub hosts: u32,
+    pub _reserved: u32,
+}
+
+/// One sim host as the learner host's bridge sees it.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.SimHost.v1")]
+pub struct SimHost {
+    /// Its source id (`lavatube join --source`).
+    pub source: u32,
+    /// 1 while its Zenoh liveliness token is alive, 0 once it is gone.
+    pub joined: u32,
+    /// Rollout chunks received from it, and the id of the last one.
+    pub chunks: u64,
+    pub last_chunk: u64,
+    /// Env steps its sim has taken, as its last chunk says.
+    pub env_steps: u64,
+    /// Frames missing from its sequence.
+    pub lost: u64,
+    /// Over the last second.
+    pub steps_per_s: f32,
+    pub bytes_per_s: f32,
+}
+
 // ---- `lavatube swap-learner` → launcher: `swap` (request-response) --------------------------
 
 /// Bytes of a path in a [`SwapRequest`].
@@ -371,6 +406,23 @@ mod tests {
         assert_eq!(huge.refusal(PolicySlot::Flat, &w), Some("wrong shape"));
         let empty = PolicyHeader { n_hidden: 0, ..h };
         assert_eq!(empty.refusal(PolicySlot::Flat, &w), Some("wrong shape"));
+    }
+
+    #[test]
+    fn hosts_layout() {
+        assert_eq!(
+            (size_of::<HostsHeader>(), align_of::<HostsHeader>()),
+            (16, 8),
+            "{MSG}"
+        );
+        assert_eq!(
+            (size_of::<SimHost>(), align_of::<SimHost>()),
+            (48, 8),
+            "{MSG}"
+        );
+        assert_eq!(offset_of!(SimHost, chunks), 8, "{MSG}");
+        assert_eq!(offset_of!(SimHost, lost), 32, "{MSG}");
+        assert_eq!(offset_of!(SimHost, bytes_per_s), 44, "{MSG}");
     }
 
     #[test]

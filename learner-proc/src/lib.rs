@@ -27,6 +27,7 @@ pub mod metrics;
 pub mod net;
 pub mod obs_norm;
 pub mod ppo;
+pub mod rounds;
 pub mod serve;
 mod writes;
 

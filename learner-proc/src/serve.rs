@@ -9,9 +9,10 @@
 //! The run's own checkpoints beat `--init-from` so that a learner restarted with the same
 //! command line continues its run instead of warm-starting it again.
 
+use crate::rounds::Round;
 use crate::writes::Writes;
 use crate::{EpisodeOutcome, Learner, LearnerError, MetricsLog, Rollout, curves};
-use common::config::PolicySlot;
+use common::config::{LearnMode, PolicySlot};
 use common::ipc::{self, Bus, Sender};
 use common::refusals::Refusals;
 use common::wire::{PolicyHeader, RolloutHeader};
@@ -302,6 +303,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     );
 
     let mut sources = BTreeMap::<u32, Source>::new();
+    let mut rounds = (cfg.run.mode == LearnMode::Sync && args.sources > 1).then(Round::default);
     let mut lags = LagHistogram::default();
     // Every consumed chunk is answered with a policy, so a sync-mode sim never waits in vain.
     let answer = |learner: &Learner, chunks_seen: u64, writes: &Writes| {
@@ -351,10 +353,36 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 .episodes
                 .feed(transitions);
             lags.add(learner.policy_version(), transitions);
-            let updated = learner.update(&Rollout {
-                transitions,
-                bootstrap_obs: &bootstrap_obs,
-                episodes: &episodes,
+            // Sync mode across several sims: one update per round of their chunks.
+            let merged = match rounds.as_mut() {
+                None => None,
+                Some(round) => {
+                    round.add(
+                        h.source,
+                        h.chunk,
+                        t,
+                        transitions.to_vec(),
+                        bootstrap_obs.clone(),
+                        episodes.clone(),
+                    );
+                    let Some(m) = round.complete(args.sources as usize) else {
+                        continue;
+                    };
+                    Some(m)
+                }
+            };
+            let chunks_seen = merged.as_ref().map_or(h.chunk + 1, |m| m.chunks_seen);
+            let updated = learner.update(&match &merged {
+                None => Rollout {
+                    transitions,
+                    bootstrap_obs: &bootstrap_obs,
+                    episodes: &episodes,
+                },
+                Some(m) => Rollout {
+                    transitions: &m.transitions,
+                    bootstrap_obs: &m.bootstrap_obs,
+                    episodes: &m.episodes,
+                },
             });
             let m = match updated {
                 Ok(m) => m,
@@ -362,7 +390,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 // policy is published anyway so a waiting sync-mode sim goes on.
                 Err(e @ (LearnerError::Rollout { .. } | LearnerError::NonFinite { .. })) => {
                     tracing::warn!(chunk = h.chunk, error = %e, "chunk not trained on");
-                    answer(&learner, h.chunk + 1, &writes)?;
+                    answer(&learner, chunks_seen, &writes)?;
                     continue;
                 }
                 Err(e) => return Err(e),
@@ -373,7 +401,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
             if learner.checkpoint_due() {
                 writes.attempt("checkpoint", learner.save_checkpoint(&ckpt_dir));
             }
-            answer(&learner, h.chunk + 1, &writes)?;
+            answer(&learner, chunks_seen, &writes)?;
             if learner.checkpoint_due() {
                 figure.redraw(log.path(), false);
             }

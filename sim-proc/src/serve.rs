@@ -188,9 +188,11 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
         .with_wake_interval(Duration::from_micros(cfg.sim.telemetry_notify_us as u64));
 
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
-    let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
+    // DESIGN §9: each sim host steps episodes of its own.
+    let seed = common::Rng::source_seed(cfg.run.seed, args.source);
+    let mut fleet = Fleet::new(&cfg.sim, &terrain, seed);
     let mut csv = telemetry.map(TelemetryCsv::append).transpose()?;
-    let mut inbox = Inbox::connect(&bus, cfg.run.seed, !cfg.sim.mean_actions)?;
+    let mut inbox = Inbox::connect(&bus, seed, !cfg.sim.mean_actions)?;
     let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
     let mut nag = Nag::new(Duration::from_secs(10));

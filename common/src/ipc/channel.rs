@@ -4,7 +4,8 @@
 
 use crate::rollout::Transition;
 use crate::wire::{
-    EnvTick, PolicyHeader, RolloutHeader, TerrainEstimate, TerrainHeader, TickHeader,
+    EnvTick, HostsHeader, PolicyHeader, RolloutHeader, SimHost, TerrainEstimate, TerrainHeader,
+    TickHeader,
 };
 use std::fmt;
 use std::marker::PhantomData;
@@ -98,6 +99,16 @@ pub const TERRAIN: Channel<TerrainEstimate, TerrainHeader> = Channel::new(
         buffer: 4,
         history: 1,
         publishers: 2,
+        subscribers: 8,
+    },
+);
+/// learner host's bridge → `lavatube status`: the sim hosts it hears (DESIGN §9).
+pub const HOSTS: Channel<SimHost, HostsHeader> = Channel::new(
+    "hosts",
+    Capacity {
+        buffer: 2,
+        history: 1,
+        publishers: 1,
         subscribers: 8,
     },
 );
