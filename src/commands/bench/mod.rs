@@ -2,12 +2,14 @@
 //! env count and sim thread count it runs, on the same rough-ground envs and seed:
 //! a. physics alone, b. + policy inference, c. + publishing through iceoryx2 to a reader
 //! process, d. + the learner in sync mode, e. + the learner in async mode, f. + the estimator;
-//! then the same bytes over iceoryx2 and over a Unix socket between two processes. It prints
-//! the tables and writes `bench.json`.
+//! then the same bytes over iceoryx2 and over a Unix socket between two processes, and
+//! rollout chunks and policies through a pair of Zenoh bridges on loopback. It prints the
+//! tables and writes `bench.json`.
 //!
 //! Every stage runs the real binaries with the arguments `lavatube run` gives them, so the
 //! numbers are the runtime's own. The launcher only starts, watches and stops them.
 
+mod bridge;
 mod config;
 mod reader;
 mod report;
@@ -41,7 +43,14 @@ pub struct BenchArgs {
     /// output in seconds; the numbers are not for quoting.
     #[arg(long)]
     pub quick: bool,
+    /// Measure only rollout chunks and policies through the Zenoh bridge (DESIGN §9), with
+    /// the runtime config's chunk and policy sizes; no stages, no transport comparison.
+    #[arg(long)]
+    pub bridge_only: bool,
 }
+
+/// Messages per kind and phase through the bridge: each chunk is a quarter megabyte.
+const BRIDGE_MESSAGES: usize = 1000;
 
 /// Ctrl-C or SIGTERM during a bench: stop, clean up, exit 130.
 #[derive(Debug, thiserror::Error)]
@@ -72,8 +81,11 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
     let mut machine = report::Machine::now();
     let policy = stages::RandomPolicy::write(&plan.runtime, &dir)?;
 
-    let measurements = plan.measurements();
-    let payloads = payloads(&plan, policy.weights.len());
+    let (measurements, payloads) = if args.bridge_only {
+        (Vec::new(), Vec::new())
+    } else {
+        (plan.measurements(), payloads(&plan, policy.weights.len()))
+    };
     let bar = ProgressBar::new((measurements.len() + payloads.len()) as u64);
     bar.set_style(
         ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {pos}/{len} {msg}")
@@ -102,7 +114,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
         policy: &policy,
     };
     let mut rows = Vec::new();
-    let outcome = (|| -> anyhow::Result<Vec<transport::TransportRow>> {
+    let outcome = (|| -> anyhow::Result<(Vec<transport::TransportRow>, Vec<bridge::BridgeRow>)> {
         for m in &measurements {
             bar.set_message(format!(
                 "{} {} · {} envs · {} thread(s)",
@@ -130,26 +142,41 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
             bar.inc(1);
         }
         bar.set_message("the same bytes over iceoryx2 and a Unix socket");
-        transport::compare(
-            &home,
-            &bins.launcher,
+        let compared = if payloads.is_empty() {
+            Vec::new()
+        } else {
+            transport::compare(
+                &home,
+                &bins.launcher,
+                &dir,
+                &payloads,
+                plan.bench.transport_messages,
+                &policy.weights,
+                &mut |p| {
+                    bar.inc(1);
+                    bar.set_message(format!("transport: {} done", p.label()));
+                },
+            )
+            .context("transport comparison")?
+        };
+        bar.set_message("rollout chunks and policies through the Zenoh bridge");
+        let bridged = bridge::measure(
+            &plan.runtime,
+            &bins,
             &dir,
-            &payloads,
-            plan.bench.transport_messages,
+            &bench_id,
             &policy.weights,
-            &mut |p| {
-                bar.inc(1);
-                bar.set_message(format!("transport: {} done", p.label()));
-            },
+            plan.bench.transport_messages.min(BRIDGE_MESSAGES),
         )
-        .context("transport comparison")
+        .context("bridge")?;
+        Ok((compared, bridged))
     })();
     bar.finish_and_clear();
     drop(home);
     if let Err(e) = ipc::remove_run(&bench_id) {
         eprintln!("lavatube: {e}");
     }
-    let transport = match outcome {
+    let (transport, bridged) = match outcome {
         Ok(t) => t,
         Err(e) if e.is::<Interrupted>() => {
             eprintln!(
@@ -169,6 +196,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
         policy.weights.len(),
         rows,
         transport,
+        bridged,
     );
     print!("{}", report.text());
     let json = serde_json::to_string_pretty(&report)?;

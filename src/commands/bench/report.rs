@@ -2,6 +2,7 @@
 //! the transport table (iceoryx2 versus the socket), the acceptance checks, and
 //! the same as JSON with the units in the key names and spelled out in `units`.
 
+use super::bridge::BridgeRow;
 use super::config::{Plan, Stage};
 use super::stages::Row;
 use super::transport::TransportRow;
@@ -257,6 +258,8 @@ pub struct Report {
     pub stages: Vec<StageCell>,
     /// One entry per payload.
     pub transport: Vec<TransportRow>,
+    /// Rollout chunks and policies through a pair of `bridge-proc`s on loopback (DESIGN §9).
+    pub bridge: Vec<BridgeRow>,
     pub acceptance: Acceptance,
 }
 
@@ -301,6 +304,7 @@ impl Report {
         policy_params: usize,
         runs: Vec<Row>,
         transport: Vec<TransportRow>,
+        bridge: Vec<BridgeRow>,
     ) -> Self {
         let stages = stage_cells(&runs);
         Self {
@@ -316,31 +320,12 @@ impl Report {
             acceptance: Acceptance::of(&stages, &runs),
             stages,
             transport,
+            bridge,
         }
     }
 
-    /// The tables and the acceptance checks, as printed.
-    pub fn text(&self) -> String {
-        let mut t = String::new();
-        let m = &self.machine;
-        let load = |l: Option<f64>| l.map_or("?".into(), |l| format!("{l:.2}"));
-        let _ = writeln!(
-            t,
-            "lavatube bench {}{}: {} CPUs ({}), load {} → {}; rough ground, {} physics steps per decision, policy {:?} ({} params)",
-            self.bench_id,
-            if self.quick {
-                " (--quick: not for quoting)"
-            } else {
-                ""
-            },
-            m.cpus,
-            m.cpu_model.as_deref().unwrap_or("unknown CPU"),
-            load(m.load_1m_start),
-            load(m.load_1m_end),
-            self.settings.substeps,
-            self.settings.policy_hidden,
-            self.settings.policy_params,
-        );
+    /// The stage table and the per-process CPU and memory table.
+    fn stage_tables(&self, t: &mut String) {
         let _ = writeln!(
             t,
             "\n{:<18} {:>4} {:>3} {:>11} {:>7} {:>11} {:>12} {:>5} {:>9} {:>9} {:>7}",
@@ -407,6 +392,52 @@ impl Report {
                 let _ = write!(t, " {cell:>16}");
             }
             let _ = writeln!(t);
+        }
+    }
+
+    /// The tables and the acceptance checks, as printed.
+    pub fn text(&self) -> String {
+        let mut t = String::new();
+        let m = &self.machine;
+        let load = |l: Option<f64>| l.map_or("?".into(), |l| format!("{l:.2}"));
+        let _ = writeln!(
+            t,
+            "lavatube bench {}{}: {} CPUs ({}), load {} → {}; rough ground, {} physics steps per decision, policy {:?} ({} params)",
+            self.bench_id,
+            if self.quick {
+                " (--quick: not for quoting)"
+            } else {
+                ""
+            },
+            m.cpus,
+            m.cpu_model.as_deref().unwrap_or("unknown CPU"),
+            load(m.load_1m_start),
+            load(m.load_1m_end),
+            self.settings.substeps,
+            self.settings.policy_hidden,
+            self.settings.policy_params,
+        );
+        if !self.stages.is_empty() {
+            self.stage_tables(&mut t);
+        }
+        if !self.bridge.is_empty() {
+            let _ = writeln!(
+                t,
+                "\n{:<26} {:>8} {:>22} {:>10} {:>8}",
+                "through the Zenoh bridge", "bytes", "latency p50 / p99", "msg/s", "MB/s"
+            );
+            for b in &self.bridge {
+                let us = |x: Option<f64>| x.map_or("?".into(), |x| format!("{x:.0}"));
+                let _ = writeln!(
+                    t,
+                    "{:<26} {:>8} {:>22} {:>10} {:>8.1}",
+                    b.what,
+                    b.bytes,
+                    format!("{} / {} µs", us(b.latency_p50_us), us(b.latency_p99_us)),
+                    thousands(b.messages_per_s),
+                    b.mb_per_s
+                );
+            }
         }
         if !self.transport.is_empty() {
             let _ = writeln!(

@@ -1,0 +1,293 @@
+//! The bridge between hosts (DESIGN §9) on loopback: a learner-host `bridge-proc` and a
+//! sim-host `bridge-proc`, real processes on two run ids of their own, as `lavatube run
+//! --listen` and `lavatube join` start them. The bench holds the sim side's `rollout`
+//! publisher and the learner side's `rollout` subscriber, and the reverse for
+//! `policy/general`, so it stamps each send and sees the arrival on the other host's shared
+//! memory with one clock: latency with one message in flight, then throughput with a few.
+
+use crate::runtime::{Binaries, Child, Output, Role};
+use anyhow::{Context, bail};
+use common::config::PolicySlot;
+use common::ipc::{self, Bus, Receiver, Sender};
+use common::wire::{PolicyHeader, RolloutHeader};
+use common::{Config, Transition};
+use serde::Serialize;
+use std::io::Read;
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// Chunks in flight in the throughput phase: below the rollout service's buffer of 8. A
+/// policy is a newest value (buffer 2): one in flight.
+const CHUNK_WINDOW: usize = 4;
+/// No arrival for this long fails the stage.
+const TIMEOUT: Duration = Duration::from_secs(30);
+
+/// One message kind through the bridge pair.
+#[derive(Debug, Clone, Serialize)]
+pub struct BridgeRow {
+    /// `rollout chunk` (sim host → learner host) or `policy` (learner host → sim host).
+    pub what: &'static str,
+    pub bytes: usize,
+    pub messages: usize,
+    pub latency_p50_us: Option<f64>,
+    pub latency_p99_us: Option<f64>,
+    pub messages_per_s: f64,
+    pub mb_per_s: f64,
+}
+
+/// Both hosts' ports as the bench holds them.
+struct Ports {
+    chunk_tx: Sender<Transition, RolloutHeader>,
+    chunk_rx: Receiver<Transition, RolloutHeader>,
+    policy_tx: Sender<f32, PolicyHeader>,
+    policy_rx: Receiver<f32, PolicyHeader>,
+}
+
+/// Starts the two bridges, measures chunks and policies `messages` times each, stops them.
+pub fn measure(
+    cfg: &Config,
+    bins: &Binaries,
+    dir: &Path,
+    bench_id: &str,
+    weights: &[f32],
+    messages: usize,
+) -> anyhow::Result<Vec<BridgeRow>> {
+    let dir = dir.join("bridge");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let key = dir.join("run.key");
+    let mut secret = [0u8; 32];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut secret))
+        .context("cannot read /dev/urandom for the bridge's key")?;
+    std::fs::write(&key, secret).with_context(|| format!("cannot write {}", key.display()))?;
+    let mut cfg = cfg.clone();
+    cfg.net.key_file = Some(key);
+    let cfg_path = dir.join("config.toml");
+    std::fs::write(&cfg_path, cfg.to_toml())
+        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .context("no free loopback port")?
+        .port();
+    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let (learner_run, sim_run) = (format!("{bench_id}-bl"), format!("{bench_id}-bs"));
+    let (learner_bus, sim_bus) = (
+        Bus::connect(&learner_run, "bench")?,
+        Bus::connect(&sim_run, "bench")?,
+    );
+    let n = cfg.sim.num_envs();
+    let t = cfg.ppo.rollout_steps(n);
+    let general = Some(PolicySlot::General.name());
+    let ports = Ports {
+        chunk_tx: sim_bus.sender(&ipc::ROLLOUT, None, t * n + n)?,
+        chunk_rx: learner_bus.receiver(&ipc::ROLLOUT, None)?,
+        policy_tx: learner_bus.sender(&ipc::POLICY, general, weights.len())?,
+        policy_rx: sim_bus.receiver(&ipc::POLICY, general)?,
+    };
+    let join = |side: &str, run: &str, extra: &[String]| -> Vec<String> {
+        let mut v = vec![
+            side.to_string(),
+            "--config".into(),
+            cfg_path.display().to_string(),
+            "--run-id".into(),
+            run.to_string(),
+        ];
+        v.extend_from_slice(extra);
+        v
+    };
+    let mut bridges = Vec::new();
+    for (run, args) in [
+        (
+            &learner_run,
+            join(
+                "learner",
+                &learner_run,
+                &["--listen".into(), endpoint.clone()],
+            ),
+        ),
+        (
+            &sim_run,
+            join(
+                "sim",
+                &sim_run,
+                &[
+                    "--connect".into(),
+                    endpoint.clone(),
+                    "--source".into(),
+                    "1".into(),
+                ],
+            ),
+        ),
+    ] {
+        let log_dir = dir.join(run);
+        std::fs::create_dir_all(&log_dir)?;
+        bridges.push(Child::spawn(
+            Role::Bridge.name(),
+            &bins.bridge,
+            &args,
+            &log_dir,
+            Output::File,
+        )?);
+    }
+    let measured = run(&ports, &cfg, weights, messages, &mut bridges);
+    for bus in [&learner_bus, &sim_bus] {
+        ipc::request_shutdown(&bus.control_notifier()?)?;
+    }
+    for b in &mut bridges {
+        if !b.wait_for(TIMEOUT)? {
+            b.signal(libc::SIGKILL);
+            b.wait_for(TIMEOUT)?;
+        }
+    }
+    drop((ports, learner_bus, sim_bus));
+    for run in [&learner_run, &sim_run] {
+        if let Err(e) = ipc::remove_run(run) {
+            eprintln!("lavatube: {e}");
+        }
+    }
+    measured
+}
+
+fn run(
+    ports: &Ports,
+    cfg: &Config,
+    weights: &[f32],
+    messages: usize,
+    bridges: &mut [Child],
+) -> anyhow::Result<Vec<BridgeRow>> {
+    let n = cfg.sim.num_envs();
+    let t = cfg.ppo.rollout_steps(n);
+    let chunk: Vec<Transition> = (0..t * n + n)
+        .map(|i| Transition {
+            env: (i % n) as u32,
+            ..Transition::default()
+        })
+        .collect();
+    let layout = cfg.ppo.hidden.clone();
+    let policy = PolicyHeader::new(
+        &common::PolicyLayout::new(common::OBS_DIM, &layout, common::ACT_DIM),
+        0,
+        PolicySlot::General.index() as u32,
+        cfg.ppo.obs_clip as f32,
+    );
+    // env_steps stays 0: a chunk completing run.total-steps would end the sim-host bridge.
+    let header = |i: usize| RolloutHeader {
+        chunk: i as u64,
+        env_steps: 0,
+        steps: t as u32,
+        envs: n as u32,
+        source: 1,
+        _reserved: 0,
+    };
+    let send_chunk = |i: usize| ports.chunk_tx.send(header(i), &chunk);
+    let send_policy = |i: usize| {
+        let mut h = policy;
+        h.version = i as u32;
+        ports.policy_tx.send(h, weights)
+    };
+    // The sim-host bridge asks for the newest policy once it is connected: the first
+    // arrival says both bridges are up.
+    send_policy(0)?;
+    let started = Instant::now();
+    while ports.policy_rx.latest()?.is_none() {
+        check(bridges, started)?;
+        ports.policy_tx.update_connections()?;
+        ports.policy_rx.wait(Duration::from_millis(20))?;
+    }
+    // A chunk sent before the sim-host bridge subscribed is gone (the service keeps no
+    // history): send until one arrives, then drain any late copies.
+    let started = Instant::now();
+    'warm: loop {
+        send_chunk(0)?;
+        let sent = Instant::now();
+        while sent.elapsed() < Duration::from_millis(200) {
+            if ports.chunk_rx.try_recv()?.is_some() {
+                break 'warm;
+            }
+            ports.chunk_rx.wait(Duration::from_millis(10))?;
+        }
+        check(bridges, started)?;
+    }
+    std::thread::sleep(Duration::from_millis(300));
+    while ports.chunk_rx.try_recv()?.is_some() {}
+    let chunk_row = phase(
+        ("rollout chunk", CHUNK_WINDOW),
+        std::mem::size_of_val(&chunk[..]) + size_of::<RolloutHeader>(),
+        messages,
+        &send_chunk,
+        &|| Ok(ports.chunk_rx.try_recv()?.is_some()),
+        &|d| Ok(ports.chunk_rx.wait(d)?),
+        bridges,
+    )?;
+    let policy_row = phase(
+        ("policy", 1),
+        std::mem::size_of_val(weights) + size_of::<PolicyHeader>(),
+        messages,
+        &|i| send_policy(i + 1),
+        &|| Ok(ports.policy_rx.try_recv()?.is_some()),
+        &|d| Ok(ports.policy_rx.wait(d)?),
+        bridges,
+    )?;
+    Ok(vec![chunk_row, policy_row])
+}
+
+/// Fails when a bridge died or nothing arrived for [`TIMEOUT`].
+fn check(bridges: &mut [Child], since: Instant) -> anyhow::Result<()> {
+    for b in bridges.iter_mut() {
+        if b.poll()?.is_some() {
+            bail!("{} exited early; log: {}", b.name, b.log().display());
+        }
+    }
+    if since.elapsed() > TIMEOUT {
+        bail!("nothing arrived through the bridges within {TIMEOUT:?}");
+    }
+    Ok(())
+}
+
+/// Latency (one in flight, `messages` times), then throughput (`window` in flight).
+fn phase(
+    (what, window): (&'static str, usize),
+    bytes: usize,
+    messages: usize,
+    send: &dyn Fn(usize) -> Result<(), ipc::IpcError>,
+    arrived: &dyn Fn() -> anyhow::Result<bool>,
+    wait: &dyn Fn(Duration) -> anyhow::Result<()>,
+    bridges: &mut [Child],
+) -> anyhow::Result<BridgeRow> {
+    let receive = |bridges: &mut [Child]| -> anyhow::Result<()> {
+        let since = Instant::now();
+        while !arrived()? {
+            check(bridges, since)?;
+            wait(Duration::from_millis(5))?;
+        }
+        Ok(())
+    };
+    let mut latencies = Vec::with_capacity(messages);
+    for i in 0..messages {
+        let sent = Instant::now();
+        send(i)?;
+        receive(bridges)?;
+        latencies.push(sent.elapsed().as_nanos() as u64);
+    }
+    latencies.sort_unstable();
+    let started = Instant::now();
+    let (mut sent, mut got) = (0, 0);
+    while got < messages {
+        while sent < messages && sent - got < window {
+            send(messages + sent)?;
+            sent += 1;
+        }
+        receive(bridges)?;
+        got += 1;
+    }
+    let secs = started.elapsed().as_secs_f64().max(1e-9);
+    Ok(BridgeRow {
+        what,
+        bytes,
+        messages,
+        latency_p50_us: super::reader::percentile_us(&latencies, 0.50),
+        latency_p99_us: super::reader::percentile_us(&latencies, 0.99),
+        messages_per_s: messages as f64 / secs,
+        mb_per_s: (messages * bytes) as f64 / secs / 1e6,
+    })
+}
