@@ -417,6 +417,7 @@ impl Supervision<'_, '_> {
                 let w = self.progress.write_failures.entry(*slot).or_default();
                 w.saw(h.learner, h.write_failures);
                 self.progress.learned_steps = self.progress.learned_steps.max(h.env_steps);
+                self.progress.learned_version = self.progress.learned_version.max(h.version);
             }
         }
         let p = &self.progress;

@@ -17,8 +17,10 @@ pub struct Progress {
     pub both_areas: bool,
     /// Per policy slot, the learners' failed checkpoint and metrics writes.
     pub write_failures: BTreeMap<PolicySlot, WriteFailures>,
-    /// The most env steps a learner's policy has learned from, over every sim it hears.
+    /// The most env steps a learner's policy has learned from, over every sim it hears, and
+    /// the newest policy version.
     pub learned_steps: u64,
+    pub learned_version: u32,
 }
 
 /// One slot's failed writes, summed over the learner processes that served it (each counts
@@ -115,7 +117,7 @@ impl Summary {
             reach_seconds: episodes
                 .reach_seconds(decision_dt)
                 .map(|(mean, std)| MeanStd { mean, std }),
-            policy_version: progress.tick.policy_version,
+            policy_version: progress.tick.policy_version.max(progress.learned_version),
             terrain_accuracy: progress.terrain_accuracy(),
             estimator_refits: progress.terrain.refits,
             pids: BTreeMap::new(),
