@@ -441,3 +441,84 @@ fn sync_across_two_sim_hosts_is_one_update_per_round_and_reproducible_from_the_s
         "the same seed gave other weights"
     );
 }
+
+#[test]
+fn a_learner_host_killed_and_resumed_trains_on_and_its_sim_host_reconnects() {
+    let pid = std::process::id();
+    let hosts =
+        support::AcrossHosts::new("tests/fixtures/survival.toml", &format!("back-{pid}"), 1);
+    let learner_run = format!("back-l-{pid}");
+    let mut learner_host = hosts.learner_host(&learner_run);
+    let sim_run = format!("back-s-{pid}");
+    let _sim = hosts.sim_host(&sim_run, 1);
+    let sim = support::Watch::connect(&sim_run, "monitor");
+    let minute = Duration::from_secs(60);
+    let mut seen = Vec::new();
+    let started = Instant::now();
+    while newest_version(&sim, &mut seen).unwrap_or(0) < 3 {
+        assert!(
+            started.elapsed() < minute,
+            "no training through the bridge: {seen:?}"
+        );
+        sim.policies.wait(Duration::from_millis(50)).expect("wait");
+    }
+
+    // The whole learner host goes: its launcher with SIGKILL, its children after it.
+    kill_all(&[learner_host.child.id() as i32]);
+    learner_host.child.wait().expect("reaped");
+    let until_gone = Instant::now();
+    while common::ipc::list_nodes(&learner_run)
+        .unwrap_or_default()
+        .iter()
+        .any(|n| n.alive)
+    {
+        assert!(
+            until_gone.elapsed() < minute,
+            "the learner host's children outlived it"
+        );
+        watch_for(&sim, &mut seen, Duration::from_millis(100));
+    }
+    let tick = |w: &support::Watch| {
+        let mut last = 0;
+        while let Some(t) = w.ticks.try_recv().expect("telemetry") {
+            last = t.user_header().tick;
+        }
+        last
+    };
+    let before = tick(&sim);
+    watch_for(&sim, &mut seen, Duration::from_secs(1));
+    assert!(
+        tick(&sim) > before,
+        "the sim host steps on while the learner host is away"
+    );
+    let last_before = *seen.last().expect("versions");
+
+    let dir = support::root().join("target/e2e-runs").join(&learner_run);
+    let dir_arg = dir.display().to_string();
+    let resumed = support::Launched::run(
+        &["--resume", &dir_arg, "--listen", &hosts.endpoint],
+        &format!("{learner_run}-resumed"),
+    );
+    let started = Instant::now();
+    while newest_version(&sim, &mut seen).unwrap_or(0) <= last_before {
+        assert!(
+            started.elapsed() < minute,
+            "the sim host got no newer policy: {seen:?}"
+        );
+        sim.policies.wait(Duration::from_millis(50)).expect("wait");
+    }
+    // Measured, not asserted (a timing): the closing report quotes it.
+    eprintln!(
+        "the sim host acted on a newer policy {:.2} s after `run --resume` started",
+        started.elapsed().as_secs_f64()
+    );
+    let mut distinct = seen.clone();
+    distinct.dedup();
+    assert!(
+        distinct.windows(2).all(|w| w[1] >= w[0]),
+        "versions only grow: {distinct:?}"
+    );
+    drop(sim);
+    let (code, said) = resumed.wait_interrupted();
+    assert_eq!(code, 130, "{said}");
+}

@@ -5,7 +5,8 @@
 //! every second on the local `hosts` service for `lavatube status`.
 
 use crate::frame::{self, Key, Kind};
-use crate::{Counts, Stop, link};
+use crate::link::{self, Net};
+use crate::{Counts, Stop};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, Sender};
 use common::refusals::Refusals;
@@ -13,10 +14,10 @@ use common::wire::{HostsHeader, PolicyHeader, RolloutHeader, SimHost};
 use common::{Config, Transition, rollout};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
+use zenoh::Wait;
 use zenoh::handlers::FifoChannel;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
-use zenoh::{Session, Wait};
 
 fn zerr(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
     move |e| anyhow::anyhow!("{what}: {e}")
@@ -25,8 +26,8 @@ fn zerr(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
 /// Receives rollout chunks and forwards policies until the run stops this process.
 pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
     let key = Key::new(&cfg.net.read_key()?);
-    let session = link::listen(endpoint)?;
-    let _token = session
+    let net = link::listen(endpoint)?;
+    let _token = net
         .liveliness()
         .declare_token(link::LEARNER_TOKEN)
         .wait()
@@ -41,21 +42,16 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
         .copied()
         .collect();
     let policies = {
-        let (session, key, run_id, stop) = (
-            session.clone(),
-            key.clone(),
-            run_id.to_string(),
-            stop.clone(),
-        );
+        let (net, key, run_id, stop) = (net.clone(), key.clone(), run_id.to_string(), stop.clone());
         std::thread::Builder::new()
             .name("policies".into())
             .spawn(move || {
-                let r = forward_policies(&run_id, &slots, &session, &key, &stop);
+                let r = forward_policies(&run_id, &slots, &net, &key, &stop);
                 stop.set();
                 r
             })?
     };
-    let rollouts = receive_rollouts(cfg, run_id, &session, &key, &stop);
+    let rollouts = receive_rollouts(cfg, run_id, &net, &key, &stop);
     stop.set();
     let policies = policies
         .join()
@@ -66,7 +62,7 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
 fn forward_policies(
     run_id: &str,
     slots: &[PolicySlot],
-    session: &Session,
+    net: &Net,
     key: &Key,
     stop: &Stop,
 ) -> anyhow::Result<()> {
@@ -75,14 +71,14 @@ fn forward_policies(
     let mut ports = Vec::new();
     for &slot in slots {
         let rx: Receiver<f32, PolicyHeader> = bus.receiver(&ipc::POLICY, Some(slot.name()))?;
-        let publisher = session
+        let publisher = net
             .declare_publisher(link::policy_key(slot.name()))
             .congestion_control(CongestionControl::Block)
             .wait()
             .map_err(zerr("policy publisher"))?;
         ports.push((slot, rx, publisher));
     }
-    let queries = session
+    let queries = net
         .declare_queryable(link::POLICY_ALL)
         .with(FifoChannel::new(16))
         .wait()
@@ -206,7 +202,7 @@ fn publish_hosts(
 fn receive_rollouts(
     cfg: &Config,
     run_id: &str,
-    session: &Session,
+    net: &Net,
     key: &Key,
     stop: &Stop,
 ) -> anyhow::Result<()> {
@@ -216,12 +212,12 @@ fn receive_rollouts(
     let max_len = cfg.ppo.rollout_steps(n) * n + n;
     let tx = bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, max_len)?;
     let hosts_tx = bus.sender::<SimHost, HostsHeader>(&ipc::HOSTS, None, MAX_HOSTS)?;
-    let chunks = session
+    let chunks = net
         .declare_subscriber(link::ROLLOUT_ALL)
         .with(FifoChannel::new(64))
         .wait()
         .map_err(zerr("rollout subscriber"))?;
-    let sims = session
+    let sims = net
         .liveliness()
         .declare_subscriber(link::SIM_ALL)
         .history(true)

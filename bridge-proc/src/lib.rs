@@ -4,7 +4,7 @@
 //! reading and writing the same services as a local sim or learner would.
 //!
 //! - [`frame`]: a message as bytes: type names and sizes, source, sequence number, HMAC.
-//! - [`link`]: the Zenoh sessions and key expressions.
+//! - [`link`]: the Zenoh connections and key expressions.
 //! - [`sim_side`]: on a sim host, chunks out, policies in.
 //! - [`learner_side`]: on the learner host, chunks in, policies out.
 //!

@@ -1,10 +1,13 @@
-//! The Zenoh side of a bridge: the session each side opens, and the key expressions of a
+//! The Zenoh side of a bridge: the net each side opens, and the key expressions of a
 //! run across hosts (DESIGN §9). The learner host's bridge is a Zenoh router listening on the
 //! run's endpoint; each sim host's bridge is a peer that connects to it, and that Zenoh
 //! reconnects by itself when the learner host comes back.
 
 use anyhow::Context;
-use zenoh::{Config, Session, Wait};
+use zenoh::{Config, Wait};
+
+/// An open Zenoh connection to the run's other hosts (Zenoh's own name for it is below).
+pub type Net = zenoh::Session;
 
 /// Rollout chunks of sim host `source`.
 pub fn rollout_key(source: u32) -> String {
@@ -58,25 +61,25 @@ fn config(mode: &str, listen: &[&str], connect: &[&str]) -> anyhow::Result<Confi
     Ok(c)
 }
 
-fn open(c: Config, what: &str) -> anyhow::Result<Session> {
+fn open(c: Config, what: &str) -> anyhow::Result<Net> {
     zenoh::open(c)
         .wait()
         .map_err(|e| anyhow::anyhow!("{e}"))
-        .with_context(|| format!("cannot open the Zenoh session {what}"))
+        .with_context(|| format!("cannot open the Zenoh net {what}"))
 }
 
-/// The learner host's session: a router listening on `endpoint` (e.g. `tcp/0.0.0.0:7447`).
-pub fn listen(endpoint: &str) -> anyhow::Result<Session> {
+/// The learner host's net: a router listening on `endpoint` (e.g. `tcp/0.0.0.0:7447`).
+pub fn listen(endpoint: &str) -> anyhow::Result<Net> {
     open(
         config("router", &[endpoint], &[])?,
         &format!("listening on {endpoint}"),
     )
 }
 
-/// A sim host's session: a peer that connects to the learner host at `endpoint`, retrying
+/// A sim host's net: a peer that connects to the learner host at `endpoint`, retrying
 /// until it answers, and again whenever the connection is lost. It listens on an ephemeral
 /// loopback port only, so it is reachable from nowhere else.
-pub fn connect(endpoint: &str) -> anyhow::Result<Session> {
+pub fn connect(endpoint: &str) -> anyhow::Result<Net> {
     open(
         config("peer", &["tcp/127.0.0.1:0"], &[endpoint])?,
         &format!("to {endpoint}"),

@@ -3,11 +3,12 @@
 //! (history 1, so a sim that starts late gets the newest weights). Until it has a policy of
 //! every slot it asks the learner host for the newest ones, and asks again whenever the
 //! learner host (re)appears, so a host that joins mid-run acts within a second. Once the
-//! sim's last chunk (`run.total-steps`) is out, the bridge closes its session, which sends
+//! sim's last chunk (`run.total-steps`) is out, the bridge closes its net, which sends
 //! what is still queued, and exits.
 
 use crate::frame::{self, Key, Kind};
-use crate::{Counts, Stop, link};
+use crate::link::{self, Net};
+use crate::{Counts, Stop};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
 use common::refusals::Refusals;
@@ -15,17 +16,17 @@ use common::wire::PolicyHeader;
 use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
+use zenoh::Wait;
 use zenoh::handlers::FifoChannel;
 use zenoh::qos::CongestionControl;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::sample::SampleKind;
-use zenoh::{Session, Wait};
 
 /// Forwards rollout chunks and receives policies until the run stops this process.
 pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::Result<()> {
     let key = Key::new(&cfg.net.read_key()?);
-    let session = link::connect(endpoint)?;
-    let _token = session
+    let net = link::connect(endpoint)?;
+    let _token = net
         .liveliness()
         .declare_token(link::sim_token(source))
         .wait()
@@ -33,30 +34,24 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
     tracing::info!(endpoint, source, "sim host bridge up");
     let stop = Stop::default();
     let rollouts = {
-        let (session, key, run_id, stop) = (
-            session.clone(),
-            key.clone(),
-            run_id.to_string(),
-            stop.clone(),
-        );
+        let (net, key, run_id, stop) = (net.clone(), key.clone(), run_id.to_string(), stop.clone());
         let total = cfg.run.total_steps;
         std::thread::Builder::new()
             .name("rollouts".into())
             .spawn(move || {
-                let r = forward_rollouts(&run_id, &session, &key, (source, total), &stop);
+                let r = forward_rollouts(&run_id, &net, &key, (source, total), &stop);
                 stop.set();
                 r
             })?
     };
-    let policies = receive_policies(cfg, run_id, &session, &key, &stop);
+    let policies = receive_policies(cfg, run_id, &net, &key, &stop);
     stop.set();
     let rollouts = rollouts
         .join()
         .map_err(|_| anyhow::anyhow!("the rollout thread panicked"))?;
-    session
-        .close()
+    net.close()
         .wait()
-        .map_err(|e| anyhow::anyhow!("closing the Zenoh session: {e}"))?;
+        .map_err(|e| anyhow::anyhow!("closing the Zenoh net: {e}"))?;
     policies.and(rollouts)
 }
 
@@ -64,7 +59,7 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
 /// completes `total` env steps is out.
 fn forward_rollouts(
     run_id: &str,
-    session: &Session,
+    net: &Net,
     key: &Key,
     (source, total): (u32, u64),
     stop: &Stop,
@@ -72,7 +67,7 @@ fn forward_rollouts(
     let bus = Bus::connect(run_id, "bridge-rollouts")?;
     let control = bus.control_listener()?;
     let rx = bus.receiver(&ipc::ROLLOUT, None)?;
-    let publisher = session
+    let publisher = net
         .declare_publisher(link::rollout_key(source))
         .congestion_control(CongestionControl::Block)
         .wait()
@@ -187,7 +182,7 @@ impl Republisher {
 fn receive_policies(
     cfg: &Config,
     run_id: &str,
-    session: &Session,
+    net: &Net,
     key: &Key,
     stop: &Stop,
 ) -> anyhow::Result<()> {
@@ -195,12 +190,12 @@ fn receive_policies(
     let bus = Bus::connect(run_id, "bridge-policies")?;
     let control = bus.control_listener()?;
     let mut local = Republisher::new(cfg, &bus)?;
-    let policies = session
+    let policies = net
         .declare_subscriber(link::POLICY_ALL)
         .with(FifoChannel::new(16))
         .wait()
         .map_err(zerr("policy subscriber"))?;
-    let learner_host = session
+    let learner_host = net
         .liveliness()
         .declare_subscriber(link::LEARNER_TOKEN)
         .history(true)
@@ -223,7 +218,7 @@ fn receive_policies(
             }
         }
         if !local.complete() && Instant::now() >= next_query {
-            let replies = session
+            let replies = net
                 .get(link::POLICY_ALL)
                 .target(QueryTarget::All)
                 .consolidation(ConsolidationMode::None)

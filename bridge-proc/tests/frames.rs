@@ -62,8 +62,8 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         .spawn()
         .expect("bridge-proc starts");
 
-    let session = link::connect(&endpoint).expect("session");
-    let publisher = session
+    let net = link::connect(&endpoint).expect("net");
+    let publisher = net
         .declare_publisher(link::rollout_key(1))
         .congestion_control(CongestionControl::Block)
         .wait()

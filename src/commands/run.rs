@@ -24,13 +24,14 @@ pub struct RunArgs {
     /// Go on with the stopped run in this directory (killed, or its machine restarted): its
     /// config and run id, each learner from its newest checkpoint (policy versions and the
     /// learning-rate schedule continue), the sim from the env steps that checkpoint learned
-    /// from. What was learned after the last checkpoint is lost.
+    /// from. What was learned after the last checkpoint is lost. With `--listen`, a learner
+    /// host goes on, and its sim hosts reconnect by themselves.
     #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["config", "run_id"])]
     pub resume: Option<PathBuf>,
     /// Be the learner host of a run across hosts: run the learners here, and a bridge that
     /// listens on this Zenoh endpoint (tcp/HOST:PORT) for sim hosts (`lavatube join`). Needs
     /// `net.key-file`.
-    #[arg(long, value_name = "ENDPOINT", value_parser = common::cli::parse_endpoint, conflicts_with = "resume")]
+    #[arg(long, value_name = "ENDPOINT", value_parser = common::cli::parse_endpoint)]
     pub listen: Option<String>,
 }
 
@@ -62,10 +63,15 @@ fn new_run_id() -> String {
 }
 
 pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
+    let host = |cfg: &Config| match args.listen.clone() {
+        Some(listen) => across_hosts(cfg, Host::Learner { listen }),
+        None => Ok(Host::Whole),
+    };
     if let Some(dir) = &args.resume {
         let resumed = ResumedConfig::load(dir)?;
+        let host = host(&resumed.cfg)?;
         report_sweep();
-        let finished = Run::resume(&resumed, args.quiet)?.execute()?;
+        let finished = Run::resume(&resumed, args.quiet)?.on_host(host).execute()?;
         return Ok(exit_code(!finished.interrupted));
     }
     let cfg = match &args.config {
@@ -73,10 +79,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         None => Config::default(),
     };
     let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
-    let host = match args.listen {
-        Some(listen) => across_hosts(&cfg, Host::Learner { listen })?,
-        None => Host::Whole,
-    };
+    let host = host(&cfg)?;
     let completed = execute(&cfg, &run_id, &run_id, args.quiet, host)?;
     Ok(exit_code(completed))
 }
