@@ -5,7 +5,7 @@
 //! every second on the local `hosts` service for `lavatube status`.
 
 use crate::frame::{self, Key, Kind};
-use crate::link::{self, Net};
+use crate::link::{self, Net, zerr};
 use crate::{Counts, Stop};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, Sender};
@@ -19,10 +19,6 @@ use zenoh::handlers::FifoChannel;
 use zenoh::qos::CongestionControl;
 use zenoh::sample::SampleKind;
 
-fn zerr(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
-    move |e| anyhow::anyhow!("{what}: {e}")
-}
-
 /// Receives rollout chunks and forwards policies until the run stops this process.
 pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
     let key = Key::new(&cfg.net.read_key()?);
@@ -33,7 +29,6 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
         .wait()
         .map_err(zerr("liveliness token"))?;
     tracing::info!(endpoint, "learner host bridge listening");
-    let stop = Stop::default();
     let slots: Vec<PolicySlot> = cfg
         .run
         .learners
@@ -41,22 +36,12 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
         .chain(cfg.run.frozen.keys())
         .copied()
         .collect();
-    let policies = {
-        let (net, key, run_id, stop) = (net.clone(), key.clone(), run_id.to_string(), stop.clone());
-        std::thread::Builder::new()
-            .name("policies".into())
-            .spawn(move || {
-                let r = forward_policies(&run_id, &slots, &net, &key, &stop);
-                stop.set();
-                r
-            })?
-    };
-    let rollouts = receive_rollouts(cfg, run_id, &net, &key, &stop);
-    stop.set();
-    let policies = policies
-        .join()
-        .map_err(|_| anyhow::anyhow!("the policy thread panicked"))?;
-    rollouts.and(policies)
+    let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
+    crate::both_directions(
+        "policies",
+        move |stop| forward_policies(&run, &slots, &net2, &key2, stop),
+        |stop| receive_rollouts(cfg, run_id, &net, &key, stop),
+    )
 }
 
 fn forward_policies(
@@ -212,18 +197,8 @@ fn receive_rollouts(
     let max_len = cfg.ppo.rollout_steps(n) * n + n;
     let tx = bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, max_len)?;
     let hosts_tx = bus.sender::<SimHost, HostsHeader>(&ipc::HOSTS, None, MAX_HOSTS)?;
-    let chunks = net
-        .declare_subscriber(link::ROLLOUT_ALL)
-        .with(FifoChannel::new(64))
-        .wait()
-        .map_err(zerr("rollout subscriber"))?;
-    let sims = net
-        .liveliness()
-        .declare_subscriber(link::SIM_ALL)
-        .history(true)
-        .with(FifoChannel::new(16))
-        .wait()
-        .map_err(zerr("liveliness subscriber"))?;
+    let chunks = link::subscribe(net, link::ROLLOUT_ALL, 64)?;
+    let sims = link::watch_tokens(net, link::SIM_ALL, 16)?;
     let mut hosts: BTreeMap<u32, Host> = BTreeMap::new();
     let mut refused = Refusals::new("rollout frame");
     let (mut logged, mut published) = (Instant::now(), Instant::now());

@@ -54,6 +54,32 @@ impl Stop {
     }
 }
 
+/// Runs `beside` on a thread named `name` and `here` on this one, each until it ends or the
+/// other has ended (a bridge's two directions); fails if either failed.
+fn both_directions(
+    name: &str,
+    beside: impl FnOnce(&Stop) -> anyhow::Result<()> + Send + 'static,
+    here: impl FnOnce(&Stop) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let stop = Stop::default();
+    let thread = {
+        let stop = stop.clone();
+        std::thread::Builder::new()
+            .name(name.into())
+            .spawn(move || {
+                let r = beside(&stop);
+                stop.set();
+                r
+            })?
+    };
+    let r = here(&stop);
+    stop.set();
+    let other = thread
+        .join()
+        .map_err(|_| anyhow::anyhow!("the {name} thread panicked"))?;
+    r.and(other)
+}
+
 /// Parses `args`, runs, prints any error on one line and maps it to the exit code: 0 ok,
 /// 1 a user or config error, 2 anything else.
 pub fn main_with_args<I, T>(args: I) -> ExitCode

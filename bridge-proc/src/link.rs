@@ -4,6 +4,9 @@
 //! reconnects by itself when the learner host comes back.
 
 use anyhow::Context;
+use zenoh::handlers::{FifoChannel, FifoChannelHandler};
+use zenoh::pubsub::Subscriber;
+use zenoh::sample::Sample;
 use zenoh::{Config, Wait};
 
 /// An open Zenoh connection to the run's other hosts (Zenoh's own name for it is below).
@@ -29,6 +32,33 @@ pub fn sim_token(source: u32) -> String {
 pub const SIM_ALL: &str = "lavatube/sim/*";
 /// The learner host's liveliness token: a sim host asks for policies again when it appears.
 pub const LEARNER_TOKEN: &str = "lavatube/learner";
+
+/// A Zenoh error as one line saying what failed.
+pub fn zerr(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
+    move |e| anyhow::anyhow!("{what}: {e}")
+}
+
+/// What a bridge reads from Zenoh: samples queued in a bounded channel, drained by its loop.
+pub type Inbox = Subscriber<FifoChannelHandler<Sample>>;
+
+/// A subscriber on `key` that queues up to `capacity` samples.
+pub fn subscribe(net: &Net, key: &str, capacity: usize) -> anyhow::Result<Inbox> {
+    net.declare_subscriber(key.to_string())
+        .with(FifoChannel::new(capacity))
+        .wait()
+        .map_err(zerr("subscriber"))
+}
+
+/// The liveliness tokens on `key`, those alive now first (as joins), then every join and
+/// leave.
+pub fn watch_tokens(net: &Net, key: &str, capacity: usize) -> anyhow::Result<Inbox> {
+    net.liveliness()
+        .declare_subscriber(key.to_string())
+        .history(true)
+        .with(FifoChannel::new(capacity))
+        .wait()
+        .map_err(zerr("liveliness subscriber"))
+}
 
 /// The source id in a sim token's key, `lavatube/sim/<source>`.
 pub fn token_source(key: &str) -> Option<u32> {

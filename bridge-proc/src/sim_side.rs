@@ -7,7 +7,7 @@
 //! what is still queued, and exits.
 
 use crate::frame::{self, Key, Kind};
-use crate::link::{self, Net};
+use crate::link::{self, Net, zerr};
 use crate::{Counts, Stop};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
@@ -17,7 +17,6 @@ use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout};
 use std::collections::BTreeMap;
 use std::time::{Duration, Instant};
 use zenoh::Wait;
-use zenoh::handlers::FifoChannel;
 use zenoh::qos::CongestionControl;
 use zenoh::query::{ConsolidationMode, QueryTarget};
 use zenoh::sample::SampleKind;
@@ -30,29 +29,19 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
         .liveliness()
         .declare_token(link::sim_token(source))
         .wait()
-        .map_err(|e| anyhow::anyhow!("liveliness token: {e}"))?;
+        .map_err(zerr("liveliness token"))?;
     tracing::info!(endpoint, source, "sim host bridge up");
-    let stop = Stop::default();
-    let rollouts = {
-        let (net, key, run_id, stop) = (net.clone(), key.clone(), run_id.to_string(), stop.clone());
-        let total = cfg.run.total_steps;
-        std::thread::Builder::new()
-            .name("rollouts".into())
-            .spawn(move || {
-                let r = forward_rollouts(&run_id, &net, &key, (source, total), &stop);
-                stop.set();
-                r
-            })?
-    };
-    let policies = receive_policies(cfg, run_id, &net, &key, &stop);
-    stop.set();
-    let rollouts = rollouts
-        .join()
-        .map_err(|_| anyhow::anyhow!("the rollout thread panicked"))?;
+    let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
+    let total = cfg.run.total_steps;
+    let ran = crate::both_directions(
+        "rollouts",
+        move |stop| forward_rollouts(&run, &net2, &key2, (source, total), stop),
+        |stop| receive_policies(cfg, run_id, &net, &key, stop),
+    );
     net.close()
         .wait()
-        .map_err(|e| anyhow::anyhow!("closing the Zenoh net: {e}"))?;
-    policies.and(rollouts)
+        .map_err(zerr("closing the Zenoh connection"))?;
+    ran
 }
 
 /// Forwards the sim's chunks, stamped with `source`, until the run stops or the chunk that
@@ -71,7 +60,7 @@ fn forward_rollouts(
         .declare_publisher(link::rollout_key(source))
         .congestion_control(CongestionControl::Block)
         .wait()
-        .map_err(|e| anyhow::anyhow!("rollout publisher: {e}"))?;
+        .map_err(zerr("rollout publisher"))?;
     let mut sent = Counts::default();
     let mut last_out = false;
     while !last_out {
@@ -186,22 +175,11 @@ fn receive_policies(
     key: &Key,
     stop: &Stop,
 ) -> anyhow::Result<()> {
-    let zerr = |what: &'static str| move |e: zenoh::Error| anyhow::anyhow!("{what}: {e}");
     let bus = Bus::connect(run_id, "bridge-policies")?;
     let control = bus.control_listener()?;
     let mut local = Republisher::new(cfg, &bus)?;
-    let policies = net
-        .declare_subscriber(link::POLICY_ALL)
-        .with(FifoChannel::new(16))
-        .wait()
-        .map_err(zerr("policy subscriber"))?;
-    let learner_host = net
-        .liveliness()
-        .declare_subscriber(link::LEARNER_TOKEN)
-        .history(true)
-        .with(FifoChannel::new(8))
-        .wait()
-        .map_err(zerr("liveliness subscriber"))?;
+    let policies = link::subscribe(net, link::POLICY_ALL, 16)?;
+    let learner_host = link::watch_tokens(net, link::LEARNER_TOKEN, 8)?;
     let every = Duration::from_millis(cfg.net.policy_query_ms);
     let mut next_query = Instant::now();
     while !stop.is_set() && !bus.stop_requested(&control) {
