@@ -51,6 +51,18 @@ fn two_sim_hosts_feed_one_learner_host_and_every_chunk_is_trained_on() {
         2 * 8192,
         "both hosts' steps add up"
     );
+    let metrics = support::root()
+        .join("target/e2e-runs")
+        .join(&learner_run)
+        .join(run_dir::METRICS_CSV);
+    let metrics = std::fs::read_to_string(metrics).expect("metrics.csv");
+    assert!(
+        metrics
+            .lines()
+            .last()
+            .is_some_and(|l| l.ends_with(",1:8 2:8")),
+        "per-source chunk counts in the last metrics row:\n{metrics}"
+    );
     assert_eq!(
         learner.counters().update,
         16,

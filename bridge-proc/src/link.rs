@@ -1,4 +1,4 @@
-//! The Zenoh side of a bridge: the net each side opens, and the key expressions of a
+//! The Zenoh side of a bridge: the connection each side opens, and the key expressions of a
 //! run across hosts (DESIGN §9). The learner host's bridge is a Zenoh router listening on the
 //! run's endpoint; each sim host's bridge is a peer that connects to it, and that Zenoh
 //! reconnects by itself when the learner host comes back.
@@ -95,10 +95,10 @@ fn open(c: Config, what: &str) -> anyhow::Result<Net> {
     zenoh::open(c)
         .wait()
         .map_err(|e| anyhow::anyhow!("{e}"))
-        .with_context(|| format!("cannot open the Zenoh net {what}"))
+        .with_context(|| format!("cannot open the Zenoh connection {what}"))
 }
 
-/// The learner host's net: a router listening on `endpoint` (e.g. `tcp/0.0.0.0:7447`).
+/// The learner host's connection: a router listening on `endpoint` (e.g. `tcp/0.0.0.0:7447`).
 pub fn listen(endpoint: &str) -> anyhow::Result<Net> {
     open(
         config("router", &[endpoint], &[])?,
@@ -106,7 +106,7 @@ pub fn listen(endpoint: &str) -> anyhow::Result<Net> {
     )
 }
 
-/// A sim host's net: a peer that connects to the learner host at `endpoint`, retrying
+/// A sim host's connection: a peer that connects to the learner host at `endpoint`, retrying
 /// until it answers, and again whenever the connection is lost. It listens on an ephemeral
 /// loopback port only, so it is reachable from nowhere else.
 pub fn connect(endpoint: &str) -> anyhow::Result<Net> {

@@ -3,8 +3,8 @@
 //! (history 1, so a sim that starts late gets the newest weights). Until it has a policy of
 //! every slot it asks the learner host for the newest ones, and asks again whenever the
 //! learner host (re)appears, so a host that joins mid-run acts within a second. Once the
-//! sim's last chunk (`run.total-steps`) is out, the bridge closes its net, which sends
-//! what is still queued, and exits.
+//! sim's last chunk (`run.total-steps`) is out, the bridge closes its Zenoh connection,
+//! which sends what is still queued, and exits.
 
 use crate::frame::{self, Key, Kind};
 use crate::link::{self, Net, zerr};

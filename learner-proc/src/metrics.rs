@@ -55,6 +55,9 @@ pub struct UpdateMetrics {
     pub success_rate: Option<f64>,
     /// Mean duration of the successful episodes, seconds.
     pub mean_reach_time_s: Option<f64>,
+    /// Rollout chunks received so far from each sim, `source:chunks` separated by spaces:
+    /// `0:12` on one host, `1:8 2:8` with two sim hosts (DESIGN §9).
+    pub chunks_by_source: String,
 }
 
 /// Episode columns of a metrics row.
@@ -154,6 +157,7 @@ mod tests {
             mean_episode_return: None,
             success_rate: None,
             mean_reach_time_s: None,
+            chunks_by_source: "1:8 2:7".into(),
         }
     }
 
@@ -197,7 +201,7 @@ mod tests {
         );
         assert!(lines[1].starts_with("1,2048,1,"));
         assert!(
-            lines[2].starts_with("2,4096,2,") && lines[2].ends_with(",0,0,,,"),
+            lines[2].starts_with("2,4096,2,") && lines[2].ends_with(",0,0,,,,1:8 2:7"),
             "{}",
             lines[2]
         );

@@ -384,7 +384,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                     episodes: &m.episodes,
                 },
             });
-            let m = match updated {
+            let mut m = match updated {
                 Ok(m) => m,
                 // One bad chunk (all stale, non-finite loss) is skipped, not fatal; the
                 // policy is published anyway so a waiting sync-mode sim goes on.
@@ -395,6 +395,11 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
                 }
                 Err(e) => return Err(e),
             };
+            m.chunks_by_source = sources
+                .iter()
+                .map(|(id, s)| format!("{id}:{}", s.chunks))
+                .collect::<Vec<_>>()
+                .join(" ");
             writes.attempt("metrics", log.append(&m));
             // Checkpoint before publishing: every published version can be resumed, so a
             // learner restarted after kill -9 continues the version sequence.

@@ -91,6 +91,8 @@ impl Learner {
             mean_episode_return: episodes.mean_return,
             success_rate: episodes.success_rate,
             mean_reach_time_s: episodes.mean_reach_time_s,
+            // The serving loop knows the sources; an update alone does not.
+            chunks_by_source: String::new(),
         };
         tracing::debug!(
             update = metrics.update,

@@ -4,6 +4,8 @@
 //! publisher and the learner side's `rollout` subscriber, and the reverse for
 //! `policy/general`, so it stamps each send and sees the arrival on the other host's shared
 //! memory with one clock: latency with one message in flight, then throughput with a few.
+//! Then one sim's async env steps/s as a sim host behind the bridge against the same sim on
+//! one host, through the real launchers.
 
 use crate::runtime::{Binaries, Child, Output, Role};
 use anyhow::{Context, bail};
@@ -54,22 +56,12 @@ pub fn measure(
 ) -> anyhow::Result<Vec<BridgeRow>> {
     let dir = dir.join("bridge");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let key = dir.join("run.key");
-    let mut secret = [0u8; 32];
-    std::fs::File::open("/dev/urandom")
-        .and_then(|mut f| f.read_exact(&mut secret))
-        .context("cannot read /dev/urandom for the bridge's key")?;
-    std::fs::write(&key, secret).with_context(|| format!("cannot write {}", key.display()))?;
     let mut cfg = cfg.clone();
-    cfg.net.key_file = Some(key);
+    cfg.net.key_file = Some(write_key(&dir)?);
     let cfg_path = dir.join("config.toml");
     std::fs::write(&cfg_path, cfg.to_toml())
         .with_context(|| format!("cannot write {}", cfg_path.display()))?;
-    let port = std::net::TcpListener::bind("127.0.0.1:0")
-        .and_then(|l| l.local_addr())
-        .context("no free loopback port")?
-        .port();
-    let endpoint = format!("tcp/127.0.0.1:{port}");
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     let (learner_run, sim_run) = (format!("{bench_id}-bl"), format!("{bench_id}-bs"));
     let (learner_bus, sim_bus) = (
         Bus::connect(&learner_run, "bench")?,
@@ -290,4 +282,133 @@ fn phase(
         messages_per_s: messages as f64 / secs,
         mb_per_s: (messages * bytes) as f64 / secs / 1e6,
     })
+}
+
+/// One sim's async env steps/s behind the bridge against the same sim on one host.
+#[derive(Debug, Clone, Serialize)]
+pub struct SimRates {
+    pub env_steps: u64,
+    /// `lavatube run`: sim, learner and estimator on one host.
+    pub local_steps_per_s: f64,
+    /// `lavatube run --listen` and `lavatube join` on this machine, over loopback.
+    pub bridged_steps_per_s: f64,
+    pub bridged_over_local: f64,
+}
+
+/// Runs the runtime config in async mode for `steps` env steps, first on one host, then as
+/// a learner host and a sim host (real launchers, one after the other), and reads each
+/// sim's rate from its run's `summary.json`.
+pub fn sim_rates(
+    cfg: &Config,
+    launcher: &Path,
+    dir: &Path,
+    bench_id: &str,
+    steps: u64,
+) -> anyhow::Result<SimRates> {
+    let dir = dir.join("bridge-sim");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let mut cfg = cfg.clone();
+    cfg.run.mode = common::config::LearnMode::Async;
+    cfg.run.total_steps = steps;
+    cfg.run.out_dir = dir.join("runs");
+    cfg.net.key_file = Some(write_key(&dir)?);
+    let cfg_path = dir.join("config.toml");
+    std::fs::write(&cfg_path, cfg.to_toml())
+        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    let config = cfg_path.display().to_string();
+    let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
+    let timeout = Duration::from_secs(900);
+    let launch = |name: &'static str, args: &[&str]| -> anyhow::Result<Child> {
+        let args: Vec<String> = args.iter().map(|a| (*a).to_string()).collect();
+        Child::spawn(name, launcher, &args, &dir, Output::File)
+    };
+    let finish = |mut c: Child| -> anyhow::Result<()> {
+        if !c.wait_for(timeout)? {
+            c.signal(libc::SIGINT);
+            c.wait_for(timeout)?;
+            bail!(
+                "{} did not finish within {timeout:?}; log: {}",
+                c.name,
+                c.log().display()
+            );
+        }
+        c.failure().map_or(Ok(()), |f| Err(anyhow::anyhow!(f)))
+    };
+    let rate = |run: &str| -> anyhow::Result<f64> {
+        let path = cfg
+            .run
+            .out_dir
+            .join(run)
+            .join(common::run_dir::SUMMARY_JSON);
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        let summary: crate::runtime::Summary = serde_json::from_str(&text)
+            .with_context(|| format!("{} is no run summary", path.display()))?;
+        Ok(summary.env_steps_per_second)
+    };
+    let (local, learner_host, sim_host) = (
+        format!("{bench_id}-local"),
+        format!("{bench_id}-lhost"),
+        format!("{bench_id}-shost"),
+    );
+    finish(launch(
+        "local",
+        &["run", "--config", &config, "--run-id", &local, "--quiet"],
+    )?)?;
+    let listening = launch(
+        "learner-host",
+        &[
+            "run",
+            "--config",
+            &config,
+            "--run-id",
+            &learner_host,
+            "--listen",
+            &endpoint,
+            "--quiet",
+        ],
+    )?;
+    let joined = launch(
+        "sim-host",
+        &[
+            "join",
+            "--config",
+            &config,
+            "--run-id",
+            &sim_host,
+            "--connect",
+            &endpoint,
+            "--source",
+            "1",
+            "--quiet",
+        ],
+    )?;
+    finish(joined)?;
+    finish(listening)?;
+    let (local_steps_per_s, bridged_steps_per_s) = (rate(&local)?, rate(&sim_host)?);
+    Ok(SimRates {
+        env_steps: steps,
+        local_steps_per_s,
+        bridged_steps_per_s,
+        bridged_over_local: bridged_steps_per_s / local_steps_per_s.max(1e-9),
+    })
+}
+
+/// A fresh 32-byte shared key in `dir/run.key`.
+fn write_key(dir: &Path) -> anyhow::Result<std::path::PathBuf> {
+    let key = dir.join("run.key");
+    let mut secret = [0u8; 32];
+    std::fs::File::open("/dev/urandom")
+        .and_then(|mut f| f.read_exact(&mut secret))
+        .context("cannot read /dev/urandom for the bridge's key")?;
+    std::fs::write(&key, secret).with_context(|| format!("cannot write {}", key.display()))?;
+    Ok(key)
+}
+
+/// A TCP port on 127.0.0.1 that was free a moment ago.
+fn free_port() -> anyhow::Result<u16> {
+    Ok(std::net::TcpListener::bind("127.0.0.1:0")
+        .and_then(|l| l.local_addr())
+        .context("no free loopback port")?
+        .port())
 }

@@ -114,7 +114,8 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
         policy: &policy,
     };
     let mut rows = Vec::new();
-    let outcome = (|| -> anyhow::Result<(Vec<transport::TransportRow>, Vec<bridge::BridgeRow>)> {
+    type Bridged = (Vec<bridge::BridgeRow>, bridge::SimRates);
+    let outcome = (|| -> anyhow::Result<(Vec<transport::TransportRow>, Bridged)> {
         for m in &measurements {
             bar.set_message(format!(
                 "{} {} · {} envs · {} thread(s)",
@@ -169,7 +170,16 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
             plan.bench.transport_messages.min(BRIDGE_MESSAGES),
         )
         .context("bridge")?;
-        Ok((compared, bridged))
+        bar.set_message("one sim behind the bridge against the same sim on one host");
+        let sim = bridge::sim_rates(
+            &plan.runtime,
+            &bins.launcher,
+            &dir,
+            &bench_id,
+            plan.bench.env_steps,
+        )
+        .context("a sim behind the bridge")?;
+        Ok((compared, (bridged, sim)))
     })();
     bar.finish_and_clear();
     drop(home);

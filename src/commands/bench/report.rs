@@ -2,7 +2,7 @@
 //! the transport table (iceoryx2 versus the socket), the acceptance checks, and
 //! the same as JSON with the units in the key names and spelled out in `units`.
 
-use super::bridge::BridgeRow;
+use super::bridge::{BridgeRow, SimRates};
 use super::config::{Plan, Stage};
 use super::stages::Row;
 use super::transport::TransportRow;
@@ -258,8 +258,10 @@ pub struct Report {
     pub stages: Vec<StageCell>,
     /// One entry per payload.
     pub transport: Vec<TransportRow>,
-    /// Rollout chunks and policies through a pair of `bridge-proc`s on loopback (DESIGN §9).
+    /// Rollout chunks and policies through a pair of `bridge-proc`s on loopback (DESIGN §9),
+    /// and one sim's env steps/s behind the bridge against on one host.
     pub bridge: Vec<BridgeRow>,
+    pub bridge_sim: SimRates,
     pub acceptance: Acceptance,
 }
 
@@ -304,7 +306,7 @@ impl Report {
         policy_params: usize,
         runs: Vec<Row>,
         transport: Vec<TransportRow>,
-        bridge: Vec<BridgeRow>,
+        (bridge, bridge_sim): (Vec<BridgeRow>, SimRates),
     ) -> Self {
         let stages = stage_cells(&runs);
         Self {
@@ -321,6 +323,7 @@ impl Report {
             stages,
             transport,
             bridge,
+            bridge_sim,
         }
     }
 
@@ -438,6 +441,15 @@ impl Report {
                     b.mb_per_s
                 );
             }
+            let s = &self.bridge_sim;
+            let _ = writeln!(
+                t,
+                "one sim, async, {} env steps: {} steps/s behind the bridge, {} on one host ({:.2}×)",
+                s.env_steps,
+                thousands(s.bridged_steps_per_s),
+                thousands(s.local_steps_per_s),
+                s.bridged_over_local
+            );
         }
         if !self.transport.is_empty() {
             let _ = writeln!(
