@@ -18,11 +18,7 @@ pub struct Writes {
 impl Writes {
     /// `result` of writing `what`: the value, or `None` after counting (and, for the first
     /// of a run of failures, logging) the failure.
-    pub fn attempt<T>(
-        &mut self,
-        what: &'static str,
-        result: Result<T, LearnerError>,
-    ) -> Option<T> {
+    pub fn attempt<T>(&mut self, what: &'static str, result: Result<T, LearnerError>) -> Option<T> {
         match result {
             Ok(v) => {
                 if self.failing.remove(what) {
