@@ -1,7 +1,6 @@
 //! Stage f's evaluation and stage e's validation: every model drives the same seeded
 //! courses, alone in `sim-proc` or switching through the full runtime.
 
-use super::super::run::execute;
 use super::legs::{Cell, Evaluated, Legs, legs_in};
 use super::pipeline::Pipeline;
 use crate::runtime;
@@ -153,15 +152,7 @@ impl Pipeline {
             cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
             cfg.estimator.refit_every = 0;
             cfg.validate()?;
-            if !execute(
-                &cfg,
-                name,
-                &self.run_id(name),
-                self.quiet,
-                runtime::Host::Whole,
-            )? {
-                anyhow::bail!("interrupted during {name}; run again to resume");
-            }
+            self.execute(&cfg, name)?;
             Ok(eval.join(name).join(TELEMETRY_CSV))
         })
     }

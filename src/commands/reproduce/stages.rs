@@ -42,6 +42,21 @@ impl Pipeline {
         format!("{name}-{}", std::process::id())
     }
 
+    /// Runs `cfg` on this host as the run `name` (directory and run id); an interruption is
+    /// an error that says how to go on.
+    pub(super) fn execute(&self, cfg: &Config, name: &str) -> anyhow::Result<()> {
+        if !execute(
+            cfg,
+            name,
+            &self.run_id(name),
+            self.quiet,
+            runtime::Host::Whole,
+        )? {
+            anyhow::bail!("interrupted during {name}; run again to resume");
+        }
+        Ok(())
+    }
+
     pub(super) fn say(&self, line: &str) {
         eprintln!("reproduce: {line}");
     }
@@ -65,15 +80,7 @@ impl Pipeline {
                 .map(|s| s.name())
                 .collect::<Vec<_>>()
         ));
-        if !execute(
-            &cfg,
-            name,
-            &self.run_id(name),
-            self.quiet,
-            runtime::Host::Whole,
-        )? {
-            anyhow::bail!("interrupted during stage {name}; run again to resume");
-        }
+        self.execute(&cfg, name)?;
         self.finish(name, serde_json::json!({ "stage": name }))
     }
 
