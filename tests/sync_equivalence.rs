@@ -1,7 +1,7 @@
 //! DESIGN §3: in sync mode the three-process runtime is classic on-policy PPO. The same seed
 //! gives bit-identical weights after k updates through shared memory as through a loop that
-//! runs the simulator and learner libraries in one process, and (DESIGN §9) as through a
-//! sim host whose chunks and policies cross Zenoh over TCP.
+//! runs the simulator and learner libraries in one process (whatever the learner's thread
+//! count), and (DESIGN §9) as through a sim host whose chunks and policies cross Zenoh over TCP.
 
 use common::config::PolicySlot;
 use common::{ACT_DIM, Config, OBS_DIM, Policy, PolicyLayout};
@@ -59,19 +59,35 @@ fn train_in_process(cfg: &Config, source: u32) -> Learner {
     learner
 }
 
+/// The runtime's learner updates on two threads, the in-process loop's on one: the shards,
+/// not the threads, order every sum (DESIGN §3).
 #[test]
 fn sync_runtime_matches_the_in_process_loop_bit_for_bit() {
     let root = support::root();
-    let cfg = Config::load(&root.join("configs/smoke.toml")).expect("smoke config");
     let run_id = format!("sync-{}", std::process::id());
-    let (code, text) = support::lavatube_run("configs/smoke.toml", &run_id);
+    let runs = root.join("target/e2e-runs");
+    let mut table: toml::Table =
+        toml::from_str(&std::fs::read_to_string(root.join("configs/smoke.toml")).expect("smoke"))
+            .expect("smoke config");
+    table
+        .get_mut("ppo")
+        .and_then(toml::Value::as_table_mut)
+        .expect("[ppo]")
+        .insert("threads".into(), toml::Value::Integer(2));
+    std::fs::create_dir_all(&runs).expect("runs directory");
+    let config = runs.join(format!("{run_id}.toml"));
+    std::fs::write(&config, toml::to_string(&table).expect("toml")).expect("config");
+    let (code, text) = support::lavatube_run(config.to_str().expect("utf-8 path"), &run_id);
     assert_eq!(code, 0, "lavatube run failed:\n{text}");
-    let dir = root
-        .join("target/e2e-runs")
-        .join(&run_id)
-        .join("checkpoints");
-    let (runtime, _) = Learner::resume(&cfg, &dir).expect("the runtime's last checkpoint");
+    let run = runs.join(&run_id);
+    let log =
+        std::fs::read_to_string(common::run_dir::log_file(&run, "learner")).expect("learner log");
+    assert!(log.contains("threads=2"), "{log}");
+    let mut cfg = Config::load(&config).expect("the run's config");
+    let (runtime, _) =
+        Learner::resume(&cfg, &run.join("checkpoints")).expect("the runtime's last checkpoint");
 
+    cfg.ppo.threads = 1;
     let local = train_in_process(&cfg, 0);
     assert_eq!(runtime.counters(), local.counters());
     assert!(runtime.counters().update >= 3);

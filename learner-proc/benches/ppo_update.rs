@@ -1,20 +1,19 @@
 //! PPO update throughput: minibatch samples × epochs per second of `Learner::update`, on a
 //! 2048-transition rollout (8 envs × 256 steps, obs 10, act 2, 10 epochs), for the paper's
 //! 128-128 network and for CleanRL's 64-64 (the PyTorch reference measured here, one thread:
-//! 38k / 119k / 194k samples/s at minibatch 64 / 256 / 512). The update is the learner's hot
-//! path; this is what decides whether the simulator waits on it in sync mode.
+//! 38k / 119k / 194k samples/s at minibatch 64 / 256 / 512), on burn's autodiff and on the
+//! fused engine with 1 and 2 worker threads. The update is the learner's hot path; this is
+//! what decides whether the simulator waits on it in sync mode.
 //!
-//! Time is the benchmark thread's CPU time, not wall time: the update is single-threaded, so
-//! on an idle machine the two agree, but this machine's two cores are shared with other
-//! builds, and wall time measured the neighbours (±30 % between runs).
+//! Time is wall time, since the fused engine's workers are several threads: run it on an
+//! otherwise idle machine (a concurrent build on the same cores measures the build).
 
 use std::hint::black_box;
 use std::time::Duration;
 
-use common::config::Config;
+use common::config::{Config, PpoEngine};
 use common::policy::PolicyLayout;
 use common::{OBS_DIM, Rng, Transition};
-use criterion::measurement::{Measurement, ValueFormatter, WallTime};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use learner_proc::{Learner, Rollout};
 
@@ -22,37 +21,10 @@ const ENVS: usize = 8;
 const STEPS: usize = 256;
 const EPOCHS: usize = 10;
 
-/// CPU time of the calling thread (`CLOCK_THREAD_CPUTIME_ID`), reported like wall time.
-struct ThreadCpuTime {
-    wall: WallTime,
-}
-
-impl Measurement for ThreadCpuTime {
-    type Intermediate = Duration;
-    type Value = Duration;
-
-    fn start(&self) -> Duration {
-        common::clock::thread_cpu()
-    }
-    fn end(&self, start: Duration) -> Duration {
-        common::clock::thread_cpu().saturating_sub(start)
-    }
-    fn add(&self, a: &Duration, b: &Duration) -> Duration {
-        *a + *b
-    }
-    fn zero(&self) -> Duration {
-        Duration::ZERO
-    }
-    fn to_f64(&self, value: &Duration) -> f64 {
-        value.as_nanos() as f64
-    }
-    fn formatter(&self) -> &dyn ValueFormatter {
-        self.wall.formatter()
-    }
-}
-
-fn config(hidden: &[usize], minibatch: usize) -> Config {
+fn config(hidden: &[usize], minibatch: usize, engine: PpoEngine, threads: usize) -> Config {
     let mut cfg = Config::default();
+    cfg.ppo.engine = engine;
+    cfg.ppo.threads = threads;
     cfg.ppo.hidden = hidden.to_vec();
     cfg.ppo.minibatch_size = minibatch;
     cfg.ppo.epochs = EPOCHS;
@@ -88,7 +60,7 @@ fn rollout(learner: &Learner, rng: &mut Rng) -> (Vec<Transition>, Vec<[f32; OBS_
     (transitions, bootstrap)
 }
 
-fn ppo_update(c: &mut Criterion<ThreadCpuTime>) {
+fn ppo_update(c: &mut Criterion) {
     // As the learner process does at start-up (`learner_proc::cli::main`).
     learner_proc::tune_allocator();
     let mut group = c.benchmark_group("ppo_update");
@@ -97,32 +69,35 @@ fn ppo_update(c: &mut Criterion<ThreadCpuTime>) {
         .measurement_time(Duration::from_secs(10))
         .warm_up_time(Duration::from_secs(2));
     group.throughput(Throughput::Elements((ENVS * STEPS * EPOCHS) as u64));
+    let engines = [
+        ("burn", PpoEngine::Burn, 1),
+        ("fused-1t", PpoEngine::Fused, 1),
+        ("fused-2t", PpoEngine::Fused, 2),
+    ];
     for hidden in [[128, 128], [64, 64]] {
         for minibatch in [64, 256, 512] {
-            let cfg = config(&hidden, minibatch);
-            let layout = PolicyLayout::new(OBS_DIM, &hidden, 2);
-            let mut learner = Learner::new(&cfg, layout, 1).expect("learner");
-            let (transitions, bootstrap) = rollout(&learner, &mut Rng::new(2));
-            let batch = Rollout {
-                transitions: &transitions,
-                bootstrap_obs: &bootstrap,
-                episodes: &[],
-            };
-            let id = BenchmarkId::new(
-                format!("{}-{}", hidden[0], hidden[1]),
-                format!("mb{minibatch}"),
-            );
-            group.bench_function(id, |b| {
-                b.iter(|| black_box(learner.update(&batch).expect("update")));
-            });
+            for (name, engine, threads) in engines {
+                let cfg = config(&hidden, minibatch, engine, threads);
+                let layout = PolicyLayout::new(OBS_DIM, &hidden, 2);
+                let mut learner = Learner::new(&cfg, layout, 1).expect("learner");
+                let (transitions, bootstrap) = rollout(&learner, &mut Rng::new(2));
+                let batch = Rollout {
+                    transitions: &transitions,
+                    bootstrap_obs: &bootstrap,
+                    episodes: &[],
+                };
+                let id = BenchmarkId::new(
+                    format!("{name}/{}-{}", hidden[0], hidden[1]),
+                    format!("mb{minibatch}"),
+                );
+                group.bench_function(id, |b| {
+                    b.iter(|| black_box(learner.update(&batch).expect("update")));
+                });
+            }
         }
     }
     group.finish();
 }
 
-criterion_group! {
-    name = benches;
-    config = Criterion::default().with_measurement(ThreadCpuTime { wall: WallTime });
-    targets = ppo_update
-}
+criterion_group!(benches, ppo_update);
 criterion_main!(benches);

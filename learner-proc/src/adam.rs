@@ -12,16 +12,23 @@ use serde::{Deserialize, Serialize};
 /// `clip_grad_norm_` does (`coef = max_norm / (norm + 1e-6)`, applied when below 1).
 /// Returns the norm before clipping.
 pub fn clip_global_norm(grads: &mut [f32], max_norm: f32) -> f32 {
-    let norm = grads
-        .iter()
-        .map(|&g| f64::from(g) * f64::from(g))
-        .sum::<f64>()
-        .sqrt() as f32;
-    let coef = max_norm / (norm + 1e-6);
-    if coef < 1.0 {
+    let norm = sum_of_squares(grads).sqrt() as f32;
+    if let Some(coef) = clip_coef(norm, max_norm) {
         grads.iter_mut().for_each(|g| *g *= coef);
     }
     norm
+}
+
+/// Σ g², accumulated in f64.
+pub fn sum_of_squares(grads: &[f32]) -> f64 {
+    grads.iter().map(|&g| f64::from(g) * f64::from(g)).sum()
+}
+
+/// The factor that brings a gradient of L2 norm `norm` to at most `max_norm`, or `None` when
+/// it is within the limit already.
+pub fn clip_coef(norm: f32, max_norm: f32) -> Option<f32> {
+    let coef = max_norm / (norm + 1e-6);
+    (coef < 1.0).then_some(coef)
 }
 
 /// Adam (Kingma & Ba) with PyTorch's defaults β = (0.9, 0.999) and a configurable ε.
@@ -65,21 +72,45 @@ impl Adam {
     pub fn step(&mut self, params: &mut [f32], grads: &[f32], lr: f32) {
         debug_assert!(params.len() == self.m.len() && grads.len() == self.m.len());
         self.step += 1;
-        let t = self.step as i32;
+        self.at(self.step, lr)
+            .apply(params, grads, &mut self.m, &mut self.v);
+    }
+
+    /// The constants of step `t` (1-based) at learning rate `lr`, to apply to a part of the
+    /// parameters with that part's moments.
+    pub fn at(&self, t: u64, lr: f32) -> AdamStep {
+        let t = i32::try_from(t).unwrap_or(i32::MAX);
         let bias1 = 1.0 - f64::from(self.beta1).powi(t);
         let bias2 = 1.0 - f64::from(self.beta2).powi(t);
-        let step_size = (f64::from(lr) / bias1) as f32;
-        let bias2_sqrt = bias2.sqrt() as f32;
+        AdamStep {
+            beta1: self.beta1,
+            beta2: self.beta2,
+            eps: self.eps,
+            step_size: (f64::from(lr) / bias1) as f32,
+            bias2_sqrt: bias2.sqrt() as f32,
+        }
+    }
+}
+
+/// One Adam step's constants ([`Adam::at`]); elementwise, so it can update the parameters a
+/// part at a time.
+#[derive(Debug, Clone, Copy)]
+pub struct AdamStep {
+    beta1: f32,
+    beta2: f32,
+    eps: f32,
+    step_size: f32,
+    bias2_sqrt: f32,
+}
+
+impl AdamStep {
+    /// Updates `params` and their moments `m`, `v` with `grads` (all the same length).
+    pub fn apply(&self, params: &mut [f32], grads: &[f32], m: &mut [f32], v: &mut [f32]) {
         let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
-        for (((p, &g), m), v) in params
-            .iter_mut()
-            .zip(grads)
-            .zip(&mut self.m)
-            .zip(&mut self.v)
-        {
+        for (((p, &g), m), v) in params.iter_mut().zip(grads).zip(m).zip(v) {
             *m = b1 * *m + (1.0 - b1) * g;
             *v = b2 * *v + (1.0 - b2) * g * g;
-            *p -= step_size * *m / (v.sqrt() / bias2_sqrt + eps);
+            *p -= self.step_size * *m / (v.sqrt() / self.bias2_sqrt + eps);
         }
     }
 }

@@ -132,7 +132,10 @@ impl NetShape {
     }
 
     /// The (weight, bias) block pairs of the actor's dense layers, or the critic's.
-    fn dense(&self, critic: bool) -> impl Iterator<Item = (ParamBlock, ParamBlock)> + '_ {
+    pub(crate) fn dense(
+        &self,
+        critic: bool,
+    ) -> impl Iterator<Item = (ParamBlock, ParamBlock)> + '_ {
         let at = if critic { self.log_std_block() + 1 } else { 0 };
         let n = self.layout.hidden.len() + 1;
         (0..n).map(move |l| (self.blocks[at + 2 * l], self.blocks[at + 2 * l + 1]))

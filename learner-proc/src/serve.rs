@@ -283,7 +283,11 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         }
         return Ok(());
     }
-    tracing::info!("learner {from}");
+    tracing::info!(
+        engine = ?cfg.ppo.engine,
+        threads = learner.update_threads(),
+        "learner {from}"
+    );
     let mut log = MetricsLog::open(&args.out)?;
     let mut figure = CurvesFigure::new(&args.out);
     learner.play(args.slot);

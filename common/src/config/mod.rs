@@ -23,7 +23,7 @@ mod tests;
 pub use estimator::{EstimatorConfig, MixtureFeature};
 pub use model_file::OfflineMixture;
 pub use net::{MIN_KEY_BYTES, NetConfig};
-pub use ppo::PpoConfig;
+pub use ppo::{PpoConfig, PpoEngine};
 pub use reproduce::ReproduceConfig;
 pub use robot::{RobotConfig, WheelShape};
 pub use run::{Acting, LearnMode, PolicySlot, RunConfig};

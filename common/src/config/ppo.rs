@@ -61,6 +61,24 @@ pub struct PpoConfig {
     pub milestone_every: usize,
     /// In async mode, drop transitions more than this many policy versions old. 0 ..= 1000. Default 4.
     pub max_policy_lag: u32,
+    /// How an update takes gradients: "fused" (a hand-derived backward pass, on `threads`
+    /// workers) or "burn" (burn's autodiff, one thread). Default "fused".
+    pub engine: PpoEngine,
+    /// Workers of a fused update. 0 ..= 256; 0 picks ([`PpoConfig::update_threads`]). Default 0.
+    pub threads: usize,
+    /// Rows per gradient shard of a fused update: weights depend on it, not on `threads`. 1 ..= 4096. Default 32.
+    pub shard_size: usize,
+}
+
+/// How the learner takes an update's gradients.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PpoEngine {
+    /// Forward and backward written out for the MLPs and PPO's loss, on host buffers, split
+    /// into shards over worker threads.
+    Fused,
+    /// burn's autodiff on its CPU backend, one minibatch at a time on one thread.
+    Burn,
 }
 
 impl Default for PpoConfig {
@@ -90,6 +108,9 @@ impl Default for PpoConfig {
             keep_checkpoints: 3,
             milestone_every: 0,
             max_policy_lag: 4,
+            engine: PpoEngine::Fused,
+            threads: 0,
+            shard_size: 32,
         }
     }
 }
@@ -98,6 +119,22 @@ impl PpoConfig {
     /// Steps per env per rollout: enough that T × N covers `rollout-transitions`.
     pub fn rollout_steps(&self, num_envs: usize) -> usize {
         self.rollout_transitions.div_ceil(num_envs.max(1))
+    }
+
+    /// The fused update's workers: `threads`, or when that is 0 the cores left to each of
+    /// the run's `learners` (at least 1): every core in sync mode, where the sim waits for
+    /// the update, and those the sim's `sim_threads` leave free in async mode.
+    pub fn update_threads(&self, sync: bool, sim_threads: usize, learners: usize) -> usize {
+        if self.threads > 0 {
+            return self.threads;
+        }
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        let free = if sync {
+            cores
+        } else {
+            cores.saturating_sub(sim_threads)
+        };
+        (free / learners.max(1)).max(1)
     }
 
     /// `num_envs`: the sim's, whose rollout batch bounds the minibatch.
@@ -148,6 +185,15 @@ impl PpoConfig {
             ));
         }
         count_in("ppo.max-policy-lag", self.max_policy_lag, 0, 1000)?;
+        count_in("ppo.threads", self.threads, 0, 256)?;
+        count_in("ppo.shard-size", self.shard_size, 1, 4096)?;
+        if self.engine == PpoEngine::Burn && self.threads > 1 {
+            return Err(invalid(
+                "ppo.threads",
+                self.threads,
+                "the burn engine runs on one thread; set ppo.engine = \"fused\" to use more",
+            ));
+        }
         Ok(())
     }
 }
@@ -161,5 +207,33 @@ mod tests {
         let p = PpoConfig::default();
         assert_eq!(p.rollout_steps(8), 256);
         assert_eq!(p.rollout_steps(9), 228); // 228 × 9 = 2052 ≥ 2048
+    }
+
+    #[test]
+    fn update_threads_are_the_cores_the_sim_leaves() {
+        let cores = std::thread::available_parallelism().map_or(1, std::num::NonZero::get);
+        let mut p = PpoConfig::default();
+        assert_eq!(p.update_threads(true, 2, 1), cores);
+        assert_eq!(p.update_threads(false, 1, 1), (cores - 1).max(1));
+        assert_eq!(p.update_threads(false, cores + 4, 1), 1);
+        assert_eq!(p.update_threads(true, 2, 2 * cores), 1);
+        p.threads = 3;
+        assert_eq!(p.update_threads(false, 64, 3), 3);
+    }
+
+    #[test]
+    fn the_burn_engine_takes_one_thread() {
+        let mut p = PpoConfig {
+            engine: PpoEngine::Burn,
+            threads: 2,
+            ..PpoConfig::default()
+        };
+        let err = p.validate(8).expect_err("burn on two threads").to_string();
+        assert!(
+            err.contains("ppo.threads") && err.contains("fused"),
+            "{err}"
+        );
+        p.threads = 1;
+        p.validate(8).expect("burn on one thread");
     }
 }

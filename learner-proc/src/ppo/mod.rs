@@ -4,7 +4,9 @@
 //! 2. `batch`: one critic pass and GAE over the rollout, flattened to CleanRL's `b_*`
 //!    arrays, and the `b_inds` an update may train on;
 //! 3. `update`: epochs of shuffled minibatches, then the update's metrics;
-//! 4. `minibatch`: one minibatch's clipped surrogate, optional value clipping and entropy
+//! 4. `fused` (the default engine): the epochs with a hand-derived backward pass, each
+//!    minibatch's gradient split into shards over worker threads;
+//! 5. `minibatch` (the burn engine): one minibatch's clipped surrogate, optional value clipping and entropy
 //!    bonus, global gradient-norm clipping and an Adam step with a linearly decaying
 //!    learning rate.
 //!
@@ -14,13 +16,14 @@
 
 mod acting;
 mod batch;
+mod fused;
 mod minibatch;
 #[cfg(test)]
 pub(crate) mod tests;
 mod update;
 
 use burn::tensor::Device;
-use common::config::{Config, PolicySlot, PpoConfig};
+use common::config::{Config, LearnMode, PolicySlot, PpoConfig, PpoEngine};
 use common::policy::PolicyLayout;
 use common::{ACT_DIM, OBS_DIM, Rng, Transition};
 use serde::{Deserialize, Serialize};
@@ -89,6 +92,8 @@ pub struct Learner {
     /// estimator said its terrain; `None` (the general model): on all. Set by the caller, not
     /// checkpointed: it is the role the learner plays in a run, not learned state.
     specialist: Option<PolicySlot>,
+    /// Workers of a fused update (`ppo.threads` resolved for this run).
+    threads: usize,
     train_device: Device,
     eval_device: Device,
 }
@@ -179,6 +184,11 @@ impl Learner {
             rng: state.rng,
             counters: state.counters,
             specialist: None,
+            threads: p.update_threads(
+                cfg.run.mode == LearnMode::Sync,
+                cfg.sim.threads,
+                cfg.run.learners.len(),
+            ),
             train_device: eval_device.clone().autodiff(),
             eval_device,
         })
@@ -186,6 +196,14 @@ impl Learner {
 
     pub fn layout(&self) -> &PolicyLayout {
         &self.shape.layout
+    }
+
+    /// Worker threads of an update (1 on the burn engine).
+    pub fn update_threads(&self) -> usize {
+        match self.ppo.engine {
+            PpoEngine::Fused => self.threads,
+            PpoEngine::Burn => 1,
+        }
     }
 
     pub fn counters(&self) -> Counters {

@@ -1,13 +1,18 @@
 //! One PPO update, CleanRL's "optimizing the policy and value network": the batch, epochs of
-//! shuffled minibatches with an optional early stop on the approximate KL, then the
+//! shuffled minibatches with an optional early stop on the approximate KL (on burn's
+//! autodiff, or on the fused engine of [`super::fused`], as `ppo.engine` says), then the
 //! explained variance and the update's metrics.
 
 use std::time::Instant;
 
-use super::batch::check_rollout;
+use common::Rng;
+use common::config::PpoEngine;
+
+use super::batch::{Batch, check_rollout};
 use super::minibatch::MinibatchStats;
 use super::{Learner, Rollout};
 use crate::LearnerError;
+use crate::adam::Adam;
 use crate::metrics::{EpisodeSummary, UpdateMetrics};
 
 impl Learner {
@@ -19,35 +24,23 @@ impl Learner {
         let batch_size = steps * envs;
         let transitions = rollout.transitions;
         let batch = self.batch(rollout, envs)?;
-        let (mut b_inds, stale) = self.train_indices(transitions)?;
+        let (b_inds, stale) = self.train_indices(transitions)?;
 
-        // Optimise policy and value networks. Work on copies so a failure leaves no trace.
+        // Optimise policy and value networks, on copies so a failure leaves no trace.
         let lr = self.learning_rate() as f32;
-        let mut params = self.params.clone();
-        let mut adam = self.adam.clone();
-        let mut rng = self.rng.clone();
         let minibatch_size = self.ppo.minibatch_size.min(b_inds.len());
         // Full minibatches only (as ML-Agents); the remainder differs per epoch's shuffle.
         let num_minibatches = b_inds.len() / minibatch_size;
-        let mut grads = vec![0.0f32; params.len()];
-        let mut sums = MinibatchStats::default();
-        let mut epochs_run = 0;
-        let mut approx_kl = 0.0;
-        for _epoch in 0..self.ppo.epochs {
-            rng.shuffle(&mut b_inds);
-            for start in (0..num_minibatches).map(|k| k * minibatch_size) {
-                let mb_inds = &b_inds[start..start + minibatch_size];
-                let stats =
-                    self.minibatch_step(&batch, mb_inds, &mut params, &mut adam, &mut grads, lr)?;
-                sums.add(&stats);
-                approx_kl = stats.approx_kl;
-            }
-            epochs_run += 1;
-            // CleanRL's early stop looks at the epoch's last minibatch.
-            if self.ppo.target_kl.is_some_and(|kl| approx_kl > kl) {
-                break;
-            }
-        }
+        let Optimised {
+            params,
+            adam,
+            rng,
+            sums,
+            epochs_run,
+        } = match self.ppo.engine {
+            PpoEngine::Fused => self.optimise_fused(&batch, b_inds, lr)?,
+            PpoEngine::Burn => self.optimise_burn(&batch, b_inds, lr)?,
+        };
         let n_mb = (epochs_run * num_minibatches) as f64;
 
         let explained_var = explained_variance(&batch.b_values, &batch.b_returns);
@@ -102,6 +95,58 @@ impl Learner {
             "ppo update"
         );
         Ok(metrics)
+    }
+}
+
+/// What an update's epochs leave: the new parameters, optimizer state and RNG, the sums of
+/// the minibatches' statistics, and how many epochs ran.
+pub(super) struct Optimised {
+    pub params: Vec<f32>,
+    pub adam: Adam,
+    pub rng: Rng,
+    pub sums: MinibatchStats,
+    pub epochs_run: usize,
+}
+
+impl Learner {
+    /// The epochs of one update on burn's autodiff, one minibatch at a time.
+    fn optimise_burn(
+        &self,
+        batch: &Batch,
+        mut b_inds: Vec<usize>,
+        lr: f32,
+    ) -> Result<Optimised, LearnerError> {
+        let mut params = self.params.clone();
+        let mut adam = self.adam.clone();
+        let mut rng = self.rng.clone();
+        let minibatch_size = self.ppo.minibatch_size.min(b_inds.len());
+        let num_minibatches = b_inds.len() / minibatch_size;
+        let mut grads = vec![0.0f32; params.len()];
+        let mut sums = MinibatchStats::default();
+        let mut epochs_run = 0;
+        for _epoch in 0..self.ppo.epochs {
+            rng.shuffle(&mut b_inds);
+            let mut approx_kl = 0.0;
+            for start in (0..num_minibatches).map(|k| k * minibatch_size) {
+                let mb_inds = &b_inds[start..start + minibatch_size];
+                let stats =
+                    self.minibatch_step(batch, mb_inds, &mut params, &mut adam, &mut grads, lr)?;
+                sums.add(&stats);
+                approx_kl = stats.approx_kl;
+            }
+            epochs_run += 1;
+            // CleanRL's early stop looks at the epoch's last minibatch.
+            if self.ppo.target_kl.is_some_and(|kl| approx_kl > kl) {
+                break;
+            }
+        }
+        Ok(Optimised {
+            params,
+            adam,
+            rng,
+            sums,
+            epochs_run,
+        })
     }
 }
 
