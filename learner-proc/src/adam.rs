@@ -12,16 +12,11 @@ use serde::{Deserialize, Serialize};
 /// `clip_grad_norm_` does (`coef = max_norm / (norm + 1e-6)`, applied when below 1).
 /// Returns the norm before clipping.
 pub fn clip_global_norm(grads: &mut [f32], max_norm: f32) -> f32 {
-    let norm = sum_of_squares(grads).sqrt() as f32;
+    let norm = crate::simd::sum_of_squares(grads).sqrt() as f32;
     if let Some(coef) = clip_coef(norm, max_norm) {
         grads.iter_mut().for_each(|g| *g *= coef);
     }
     norm
-}
-
-/// Σ g², accumulated in f64.
-pub fn sum_of_squares(grads: &[f32]) -> f64 {
-    grads.iter().map(|&g| f64::from(g) * f64::from(g)).sum()
 }
 
 /// The factor that brings a gradient of L2 norm `norm` to at most `max_norm`, or `None` when
@@ -107,11 +102,13 @@ impl AdamStep {
     /// Updates `params` and their moments `m`, `v` with `grads` (all the same length).
     pub fn apply(&self, params: &mut [f32], grads: &[f32], m: &mut [f32], v: &mut [f32]) {
         let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
-        for (((p, &g), m), v) in params.iter_mut().zip(grads).zip(m).zip(v) {
-            *m = b1 * *m + (1.0 - b1) * g;
-            *v = b2 * *v + (1.0 - b2) * g * g;
-            *p -= self.step_size * *m / (v.sqrt() / self.bias2_sqrt + eps);
-        }
+        crate::simd::vectorized(|| {
+            for (((p, &g), m), v) in params.iter_mut().zip(grads).zip(m).zip(v) {
+                *m = b1 * *m + (1.0 - b1) * g;
+                *v = b2 * *v + (1.0 - b2) * g * g;
+                *p -= self.step_size * *m / (v.sqrt() / self.bias2_sqrt + eps);
+            }
+        });
     }
 }
 

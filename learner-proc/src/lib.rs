@@ -29,6 +29,7 @@ pub mod obs_norm;
 pub mod ppo;
 pub mod rounds;
 pub mod serve;
+mod simd;
 mod writes;
 
 use std::io::Write;

@@ -3,6 +3,7 @@
 //! them), tanh between them ([`fast_tanh`], the burn engine's), a linear output.
 
 use crate::net::{ParamBlock, fast_tanh};
+use crate::simd::vectorized;
 
 use super::matmul::{Mat, matmul};
 
@@ -66,7 +67,7 @@ impl Mlp {
                 true,
             );
             if l < last {
-                out.iter_mut().for_each(|v| *v = fast_tanh(*v));
+                vectorized(|| out.iter_mut().for_each(|v| *v = fast_tanh(*v)));
             }
         }
         &acts.outs[last][..rows * self.layers[last].0.cols]
@@ -101,9 +102,11 @@ impl Mlp {
             );
             let db = &mut grads[b.range()];
             db.fill(0.0);
-            for row in delta[..rows * w.cols].chunks_exact(w.cols) {
-                db.iter_mut().zip(row).for_each(|(g, d)| *g += d);
-            }
+            vectorized(|| {
+                for row in delta[..rows * w.cols].chunks_exact(w.cols) {
+                    db.iter_mut().zip(row).for_each(|(g, d)| *g += d);
+                }
+            });
             if l == 0 {
                 break;
             }
@@ -115,9 +118,11 @@ impl Mlp {
                 Mat::new(&params[w.range()], w.rows, w.cols).t(),
                 false,
             );
-            back.iter_mut()
-                .zip(input)
-                .for_each(|(g, h)| *g *= 1.0 - h * h);
+            vectorized(|| {
+                back.iter_mut()
+                    .zip(input)
+                    .for_each(|(g, h)| *g *= 1.0 - h * h);
+            });
             std::mem::swap(delta, spare);
         }
     }

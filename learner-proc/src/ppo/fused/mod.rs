@@ -11,7 +11,8 @@
 //! 2. every worker adds up the shards over its own parameter blocks and publishes their
 //!    squared norm;
 //! 3. every worker reads the global norm (block norms added in block order), clips, and
-//!    takes the Adam step on its blocks, then writes them into the shared parameters.
+//!    takes the Adam step on its blocks; after the barrier each copies the blocks it does not
+//!    own into its own copy of the parameters (no lock is ever contended).
 //!
 //! The workers are spawned once per update (not per minibatch) and each shuffles its own copy
 //! of the indices with its own copy of the RNG, so all agree on every minibatch without
@@ -38,7 +39,8 @@ use super::minibatch::{MinibatchStats, normalise_advantages};
 use super::update::Optimised;
 use super::{IN, Learner};
 use crate::LearnerError;
-use crate::adam::{Adam, clip_coef, sum_of_squares};
+use crate::adam::{Adam, clip_coef};
+use crate::simd::{sum_of_squares, vectorized};
 use crate::net::ParamBlock;
 
 /// A shard's output: its gradient over the whole parameter vector and its loss sums.
@@ -59,7 +61,9 @@ struct Shared<'a> {
     shards: Vec<RwLock<ShardOut>>,
     /// Each block's squared gradient norm (f64 bits), written by its owner in phase 2.
     block_norms: Vec<AtomicU64>,
-    params: RwLock<Vec<f32>>,
+    /// Each parameter block's values after the last step, written by its owner in phase 3
+    /// and copied by every other worker into its own full copy of the parameters.
+    blocks: Vec<RwLock<Vec<f32>>>,
     /// The blocks each worker owns in phases 2 and 3.
     owned: Vec<Vec<usize>>,
     adam: &'a Adam,
@@ -67,11 +71,9 @@ struct Shared<'a> {
     barrier: SpinBarrier,
 }
 
-/// A parameter block a worker owns in phases 2 and 3: its values (the worker's copy, which
-/// it writes into the shared parameters after each step), Adam moments and summed gradient.
+/// A parameter block a worker owns in phases 2 and 3: its Adam moments and summed gradient.
 struct OwnedBlock {
     block: usize,
-    params: Vec<f32>,
     m: Vec<f32>,
     v: Vec<f32>,
     grads: Vec<f32>,
@@ -79,6 +81,7 @@ struct OwnedBlock {
 
 /// What one worker returns: its blocks, and (all workers alike) the statistics.
 struct WorkerOut {
+    params: Vec<f32>,
     blocks: Vec<OwnedBlock>,
     sums: MinibatchStats,
     epochs: usize,
@@ -127,12 +130,8 @@ impl Learner {
         }
         let first = first.expect("at least one worker");
         adam.step += first.minibatches;
-        let params = shared
-            .params
-            .into_inner()
-            .unwrap_or_else(PoisonError::into_inner);
         Ok(Optimised {
-            params,
+            params: first.params,
             adam,
             rng: first.rng,
             sums: first.sums,
@@ -167,7 +166,11 @@ impl<'a> Shared<'a> {
                 })
                 .collect(),
             block_norms: shape.blocks.iter().map(|_| AtomicU64::new(0)).collect(),
-            params: RwLock::new(learner.params.clone()),
+            blocks: shape
+                .blocks
+                .iter()
+                .map(|b| RwLock::new(learner.params[b.range()].to_vec()))
+                .collect(),
             owned: assign_blocks(&shape.blocks, threads),
             adam: &learner.adam,
             lr,
@@ -181,6 +184,7 @@ impl<'a> Shared<'a> {
         let ppo = &self.learner.ppo;
         let shape = &self.learner.shape;
         let mut rng = self.learner.rng.clone();
+        let mut params = self.learner.params.clone();
         let mut ws = Workspace::new(self, ppo.shard_size.max(1).min(self.minibatch));
         let mut owned: Vec<OwnedBlock> = self.owned[w]
             .iter()
@@ -188,7 +192,6 @@ impl<'a> Shared<'a> {
                 let r = shape.blocks[block].range();
                 OwnedBlock {
                     block,
-                    params: self.learner.params[r.clone()].to_vec(),
                     m: self.adam.m[r.clone()].to_vec(),
                     v: self.adam.v[r.clone()].to_vec(),
                     grads: vec![0.0; r.len()],
@@ -202,7 +205,7 @@ impl<'a> Shared<'a> {
             let mut approx_kl = 0.0;
             for k in 0..self.minibatches {
                 let mb_inds = &b_inds[k * self.minibatch..(k + 1) * self.minibatch];
-                self.compute_shards(w, mb_inds, &mut ws);
+                self.compute_shards(w, &params, mb_inds, &mut ws);
                 self.wait()?;
 
                 // Phase 2: this worker's blocks of the summed gradient, and their norms.
@@ -218,9 +221,11 @@ impl<'a> Shared<'a> {
                     let range = shape.blocks[b].range();
                     g.copy_from_slice(&shards[0].grads[range.clone()]);
                     for s in &shards[1..] {
-                        g.iter_mut()
-                            .zip(&s.grads[range.clone()])
-                            .for_each(|(a, x)| *a += x);
+                        vectorized(|| {
+                            g.iter_mut()
+                                .zip(&s.grads[range.clone()])
+                                .for_each(|(a, x)| *a += x);
+                        });
                     }
                     self.block_norms[b].store(sum_of_squares(g).to_bits(), Ordering::Relaxed);
                 }
@@ -246,17 +251,22 @@ impl<'a> Shared<'a> {
                 let step = self.adam.at(t, self.lr);
                 for o in &mut owned {
                     if let Some(c) = coef {
-                        o.grads.iter_mut().for_each(|x| *x *= c);
+                        vectorized(|| o.grads.iter_mut().for_each(|x| *x *= c));
                     }
-                    step.apply(&mut o.params, &o.grads, &mut o.m, &mut o.v);
-                }
-                {
-                    let mut params = self.params.write().unwrap_or_else(PoisonError::into_inner);
-                    for o in &owned {
-                        params[shape.blocks[o.block].range()].copy_from_slice(&o.params);
-                    }
+                    let mine = &mut params[shape.blocks[o.block].range()];
+                    step.apply(mine, &o.grads, &mut o.m, &mut o.v);
+                    self.blocks[o.block]
+                        .write()
+                        .unwrap_or_else(PoisonError::into_inner)
+                        .copy_from_slice(mine);
                 }
                 self.wait()?;
+                for (b, block) in self.blocks.iter().enumerate() {
+                    if !self.owned[w].contains(&b) {
+                        params[shape.blocks[b].range()]
+                            .copy_from_slice(&block.read().unwrap_or_else(PoisonError::into_inner));
+                    }
+                }
                 sums.add(&stats);
                 approx_kl = stats.approx_kl;
             }
@@ -267,6 +277,7 @@ impl<'a> Shared<'a> {
             }
         }
         Ok(WorkerOut {
+            params,
             blocks: owned,
             sums,
             epochs,
@@ -275,20 +286,19 @@ impl<'a> Shared<'a> {
         })
     }
 
-    /// Phase 1: worker `w`'s shards of the minibatch `mb_inds`, from the current parameters.
-    fn compute_shards(&self, w: usize, mb_inds: &[usize], ws: &mut Workspace) {
+    /// Phase 1: worker `w`'s shards of the minibatch `mb_inds` at `params`.
+    fn compute_shards(&self, w: usize, params: &[f32], mb_inds: &[usize], ws: &mut Workspace) {
         ws.advantages.clear();
         ws.advantages
             .extend(mb_inds.iter().map(|&i| self.batch.b_advantages[i]));
         if self.learner.ppo.norm_adv {
             normalise_advantages(&mut ws.advantages);
         }
-        let params = self.params.read().unwrap_or_else(PoisonError::into_inner);
         for s in (w..self.shards.len()).step_by(self.threads) {
             let mut out = self.shards[s]
                 .write()
                 .unwrap_or_else(PoisonError::into_inner);
-            self.shard(&params, mb_inds, s, ws, &mut out);
+            self.shard(params, mb_inds, s, ws, &mut out);
         }
     }
 

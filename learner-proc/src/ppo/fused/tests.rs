@@ -38,7 +38,7 @@ fn fused_gradients_match_burns_autodiff() {
 
         let shared = Shared::new(&l, &batch, 128, 1, 1e-3);
         let mut ws = Workspace::new(&shared, shard_size.min(64));
-        shared.compute_shards(0, &mb_inds, &mut ws);
+        shared.compute_shards(0, &l.params, &mb_inds, &mut ws);
         let mut fused = vec![0.0f32; l.params.len()];
         let mut total = ShardSums::default();
         for s in &shared.shards {
