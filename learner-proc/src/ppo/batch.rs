@@ -3,6 +3,7 @@
 //! arrays ("flatten the batch"), and the `b_inds` an update may draw its minibatches from.
 
 use common::Transition;
+use common::config::PpoEngine;
 
 use super::{IN, Learner, Rollout};
 use crate::LearnerError;
@@ -74,7 +75,10 @@ impl Learner {
             .chain(cut_short.iter().map(|&i| transitions[i].final_obs));
         let x = self.normalised(all_obs);
         let b_obs = x[..batch_size * IN].to_vec(); // [steps * envs, obs + 1]
-        let all_values = self.values_normalised(x)?;
+        let all_values = match self.ppo.engine {
+            PpoEngine::Fused => self.values_fused(&x),
+            PpoEngine::Burn => self.values_normalised(x)?,
+        };
         let values = &all_values[..batch_size]; // [steps, envs]
         let next_value = &all_values[batch_size..batch_size + envs]; // [envs]
         let mut final_values = vec![0.0f32; batch_size];

@@ -7,9 +7,11 @@ use crate::simd::vectorized;
 
 use super::matmul::{Mat, matmul};
 
-/// A network's dense layers: each one's weight and bias blocks in the flat parameter vector.
+/// A network's dense layers: each one's weight and bias blocks in the flat parameter vector,
+/// whose span of it starts at `origin`.
 pub(super) struct Mlp {
     layers: Vec<(ParamBlock, ParamBlock)>,
+    origin: usize,
 }
 
 /// The buffers of one pass over at most `rows` rows: each layer's output (after tanh for a
@@ -21,9 +23,16 @@ pub(super) struct Activations {
 }
 
 impl Mlp {
-    pub(super) fn new(layers: Vec<(ParamBlock, ParamBlock)>) -> Self {
+    pub(super) fn new(layers: Vec<(ParamBlock, ParamBlock)>, origin: usize) -> Self {
         assert!(!layers.is_empty(), "an MLP needs a layer");
-        Self { layers }
+        assert!(layers.iter().all(|(w, b)| w.offset.min(b.offset) >= origin));
+        Self { layers, origin }
+    }
+
+    /// Where `block` sits in a buffer that holds this network's span only.
+    fn local(&self, block: ParamBlock) -> std::ops::Range<usize> {
+        let r = block.range();
+        r.start - self.origin..r.end - self.origin
     }
 
     pub(super) fn buffers(&self, rows: usize) -> Activations {
@@ -73,9 +82,10 @@ impl Mlp {
         &acts.outs[last][..rows * self.layers[last].0.cols]
     }
 
-    /// Writes into the network's blocks of `grads` the gradient of a loss whose gradient
-    /// with respect to the outputs of the last [`Self::forward`] (same `x`, `rows`) is
-    /// `d_out`, `[rows, out]`. Other blocks of `grads` are left as they are.
+    /// Writes into `grads` (this network's span of the parameters, from `origin`) the gradient
+    /// of a loss whose gradient with respect to the outputs of the last [`Self::forward`] (same
+    /// `x`, `rows`) is `d_out`, `[rows, out]`. Values of the span outside the dense layers are
+    /// left as they are.
     pub(super) fn backward(
         &self,
         params: &[f32],
@@ -95,12 +105,12 @@ impl Mlp {
             };
             let d = Mat::new(delta, rows, w.cols);
             matmul(
-                &mut grads[w.range()],
+                &mut grads[self.local(w)],
                 Mat::new(input, rows, w.rows).t(),
                 d,
                 false,
             );
-            let db = &mut grads[b.range()];
+            let db = &mut grads[self.local(b)];
             db.fill(0.0);
             vectorized(|| {
                 for row in delta[..rows * w.cols].chunks_exact(w.cols) {
@@ -145,11 +155,15 @@ mod tests {
             cols,
             role: Role::Bias { fan_in: 0 },
         };
-        let mlp = Mlp::new(vec![
-            (block(0, 2, 2), block(4, 1, 2)),
-            (block(6, 2, 1), block(8, 1, 1)),
-        ]);
-        let params = [1.0, 0.0, 0.0, 2.0, 0.0, 0.5, 1.0, -1.0, 0.25];
+        // The network's span starts at 1: a parameter before it is not the network's.
+        let mlp = Mlp::new(
+            vec![
+                (block(1, 2, 2), block(5, 1, 2)),
+                (block(7, 2, 1), block(9, 1, 1)),
+            ],
+            1,
+        );
+        let params = [f32::NAN, 1.0, 0.0, 0.0, 2.0, 0.0, 0.5, 1.0, -1.0, 0.25];
         let x = [0.5, 0.25];
         let mut acts = mlp.buffers(1);
         let y = mlp.forward(&params, &x, 1, &mut acts)[0];

@@ -1,5 +1,6 @@
 use super::*;
 use crate::ppo::tests::{OwnedRollout, learner, small_config};
+use common::OBS_DIM;
 use common::config::PpoEngine;
 
 /// The fused engine's minibatch gradient, shards added in order, against burn's autodiff of
@@ -38,13 +39,19 @@ fn fused_gradients_match_burns_autodiff() {
 
         let shared = Shared::new(&l, &batch, 128, 1, 1e-3);
         let mut ws = Workspace::new(&shared, shard_size.min(64));
-        shared.compute_shards(0, &l.params, &mb_inds, &mut ws);
+        shared.compute_items(0, &l.params, &mb_inds, &mut ws);
         let mut fused = vec![0.0f32; l.params.len()];
         let mut total = ShardSums::default();
-        for s in &shared.shards {
-            let s = s.read().expect("shard");
-            fused.iter_mut().zip(&s.grads).for_each(|(a, g)| *a += g);
-            total.add(&s.sums);
+        for net in Net::BOTH {
+            let span = net.range(&l.shape);
+            for item in &shared.items[net as usize] {
+                let item = item.read().expect("item");
+                fused[span.clone()]
+                    .iter_mut()
+                    .zip(&item.grads)
+                    .for_each(|(a, g)| *a += g);
+                total.add(&item.sums);
+            }
         }
         let scale = burn_grads.iter().fold(0.0f32, |m, g| m.max(g.abs()));
         assert!(scale > 1e-3, "a vanishing gradient proves nothing");
@@ -67,8 +74,8 @@ fn fused_gradients_match_burns_autodiff() {
     }
 }
 
-/// Three updates on 1, 2 and 3 threads give bit-identical weights, optimizer state and RNG:
-/// the shards, not the threads, fix the order of every sum.
+/// Three updates on 1 to 4 threads give bit-identical weights, optimizer state and RNG: the
+/// shards and parts, not the threads, fix the order of every sum.
 #[test]
 fn any_thread_count_gives_the_same_weights() {
     let run = |threads: usize, shard_size: usize| {
@@ -77,7 +84,8 @@ fn any_thread_count_gives_the_same_weights() {
         cfg.ppo.shard_size = shard_size;
         let mut l = learner(&cfg, 31);
         assert_eq!(l.update_threads(), threads);
-        let rollout = OwnedRollout::acted_by(&l, 64, 4, 32);
+        // 384 rows: two chunks of the critic's value pass.
+        let rollout = OwnedRollout::acted_by(&l, 96, 4, 32);
         for _ in 0..3 {
             l.update(&rollout.view()).expect("update");
         }
@@ -87,9 +95,9 @@ fn any_thread_count_gives_the_same_weights() {
     assert_eq!(
         one.1.step,
         3 * 2 * 4,
-        "3 updates × 2 epochs × 4 minibatches"
+        "3 updates × 2 epochs × 6 minibatches"
     );
-    for threads in [2, 3] {
+    for threads in [2, 3, 4] {
         let other = run(threads, 16);
         assert!(
             one.0
@@ -161,25 +169,29 @@ fn a_non_finite_loss_fails_the_update_on_all_workers() {
     assert_eq!((l.params.clone(), l.adam.clone(), l.counters), before);
 }
 
-/// Blocks go to workers by size, each block to exactly one.
+/// The critic's values of a rollout, in chunks over two threads, agree with burn's.
 #[test]
-fn blocks_are_spread_evenly() {
-    let layout = common::policy::PolicyLayout::new(OBS_DIM, &[128, 128], ACT_DIM);
-    let shape = crate::net::NetShape::new(&layout);
-    let owned = assign_blocks(&shape.blocks, 2);
-    let load = |w: usize| -> usize {
-        owned[w]
-            .iter()
-            .map(|&b| shape.blocks[b].range().len())
-            .sum()
-    };
-    let mut all: Vec<usize> = owned.concat();
-    all.sort_unstable();
-    assert_eq!(all, (0..shape.blocks.len()).collect::<Vec<_>>());
-    assert!(
-        load(0).abs_diff(load(1)) < 300,
-        "{} vs {}",
-        load(0),
-        load(1)
-    );
+fn fused_values_match_burns() {
+    let mut cfg = small_config(64, 10);
+    cfg.ppo.threads = 2;
+    let mut l = learner(&cfg, 61);
+    let mut rng = Rng::new(62);
+    for p in &mut l.params {
+        *p += (0.05 * rng.normal()) as f32;
+    }
+    let obs: Vec<[f32; OBS_DIM]> = (0..600)
+        .map(|_| std::array::from_fn(|_| (2.0 * rng.normal()) as f32))
+        .collect();
+    let x = l.normalised(obs.iter().copied());
+    let fused = l.values_fused(&x);
+    let burn = l.values_normalised(x).expect("burn values");
+    assert_eq!(fused.len(), 600);
+    let scale = burn.iter().fold(0.0f32, |m, v| m.max(v.abs()));
+    assert!(scale > 0.1, "a flat critic proves nothing");
+    for (i, (f, b)) in fused.iter().zip(&burn).enumerate() {
+        assert!(
+            (f - b).abs() <= 1e-5 * scale,
+            "row {i}: fused {f} vs burn {b}"
+        );
+    }
 }
