@@ -1,15 +1,19 @@
-//! The lavatube learner: PPO (SPEC S6) in burn on rollouts from the simulator, publishing the
-//! actor as a flat f32 vector in the `common::policy` layout, with crash-safe checkpoints.
+//! The lavatube learner: PPO (SPEC S6) on rollouts from the simulator, its update on the fused
+//! engine (a hand-derived backward pass on worker threads, `ppo::fused`) or on burn's autodiff,
+//! publishing the actor as a flat f32 vector in the `common::policy` layout, with crash-safe
+//! checkpoints.
 //!
-//! Depends on `common` (transitions, config, policy layout, RNG) and burn's CPU backend
-//! (`flex`); links no other process crate.
+//! Depends on `common` (transitions, config, policy layout, RNG), burn's CPU backend (`flex`),
+//! `gemm` for the fused engine's products and `pulp` for its vector loops; links no other
+//! process crate.
 //!
 //! Invariants:
 //! - [`Learner::policy_weights`] is exactly what `common::Policy` evaluates: the same
 //!   observation normalisation, layer order and tanh activations (tested to 1e-5).
 //! - An update either completes or leaves the learner unchanged.
-//! - Training is a pure function of seed, config and rollouts: a learner resumed from the
-//!   checkpoint after update k produces bit-identical weights at update k + 1.
+//! - Training is a pure function of seed, config and rollouts, whatever `ppo.threads`: a
+//!   learner resumed from the checkpoint after update k produces bit-identical weights at
+//!   update k + 1.
 //! - A checkpoint file is whole or refused; saving never destroys the previous good one.
 //!
 //! The runtime's loop, one rollout chunk at a time, is [`serve::serve`]: resume or start,

@@ -82,22 +82,28 @@ impl Inbox {
         })
     }
 
-    /// Applies the newest message of every slot; returns the headers that arrived.
+    /// Applies the newest acceptable message of every slot; returns the headers applied.
     fn take(&mut self) -> anyhow::Result<Vec<(PolicySlot, PolicyHeader)>> {
         let mut got = Vec::new();
         for (slot, rx) in &self.rx {
-            let Some(sample) = rx.latest()? else {
+            // DESIGN §2: the sim never acts with a policy it cannot trust; it keeps the one it
+            // has. A refused message does not hide a good one that arrived before it: in async
+            // mode a learner publishes again only after the sim's rollouts, so a first policy
+            // lost behind a hostile one would stall the run.
+            let mut newest = None;
+            while let Some(sample) = rx.try_recv()? {
+                let h = *sample.user_header();
+                match h.refusal(*slot, sample.payload()) {
+                    Some(kind) => self.refused.refuse(
+                        kind,
+                        &format!("slot {}, version {}", slot.name(), h.version),
+                    ),
+                    None => newest = Some((h, sample.payload().to_vec())),
+                }
+            }
+            let Some((h, weights)) = newest else {
                 continue;
             };
-            let h = *sample.user_header();
-            // DESIGN §2: the sim never acts with a policy it cannot trust; it keeps the one it has.
-            if let Some(kind) = h.refusal(*slot, sample.payload()) {
-                self.refused.refuse(
-                    kind,
-                    &format!("slot {}, version {}", slot.name(), h.version),
-                );
-                continue;
-            }
             let layout = h.layout();
             let fresh = |weights: &[f32]| -> anyhow::Result<PolicyController> {
                 let policy = Policy::new(layout.clone(), weights.to_vec(), h.obs_clip)?;
@@ -108,15 +114,14 @@ impl Inbox {
             };
             match &mut self.policies {
                 None => {
-                    self.policies =
-                        Some(PolicySet::new(*slot, fresh(sample.payload())?, h.version));
+                    self.policies = Some(PolicySet::new(*slot, fresh(&weights)?, h.version));
                 }
                 Some(policies) => match policies.get_mut(*slot) {
                     Some(c) if c.policy.layout() == &layout => {
-                        c.policy.set_weights(sample.payload())?;
+                        c.policy.set_weights(&weights)?;
                         policies.set_version(*slot, h.version);
                     }
-                    _ => policies.insert(*slot, fresh(sample.payload())?, h.version),
+                    _ => policies.insert(*slot, fresh(&weights)?, h.version),
                 },
             }
             let was = self.heads[slot.index()].learner;

@@ -1,4 +1,4 @@
-//! PPO's loss on a shard of a minibatch and its gradient with respect to the networks'
+//! PPO's loss (SPEC S6) on a shard of a minibatch and its gradient with respect to the networks'
 //! outputs, derived by hand (the burn engine's autodiff computes the same from
 //! [`crate::loss`]): the clipped surrogate under the diagonal Gaussian policy, the
 //! (optionally clipped) value loss. Means are over the whole minibatch, so the shards'
