@@ -154,16 +154,20 @@ mod tests {
             values: &[0.0],
             returns: &[0.0],
         };
-        let mut d_mean = [0.0; 2];
-        let mut sums = ShardSums::default();
-        let d_ls = policy_head(
-            &rows,
-            &[0.0, 0.0],
-            &[0.0, 0.0],
-            settings(2, false),
-            &mut d_mean,
-            &mut sums,
-        );
+        // Mean 0 and log-std 0 for both action dimensions, minibatch of 2.
+        let head = |rows: &ShardRows| {
+            let (mut d_mean, mut sums) = ([0.0; 2], ShardSums::default());
+            let d_ls = policy_head(
+                rows,
+                &[0.0; 2],
+                &[0.0; 2],
+                settings(2, false),
+                &mut d_mean,
+                &mut sums,
+            );
+            (d_mean, d_ls, sums)
+        };
+        let (d_mean, d_ls, sums) = head(&rows);
         let close = |a: f32, b: f64| (f64::from(a) - b).abs() < 1e-5;
         let r = 1.146_967;
         assert!((sums.pg_loss + 2.0 * r).abs() < 1e-5, "{sums:?}");
@@ -177,15 +181,7 @@ mod tests {
             logprobs: &[-3.0],
             ..rows
         };
-        let mut sums = ShardSums::default();
-        let d_ls = policy_head(
-            &rows,
-            &[0.0, 0.0],
-            &[0.0, 0.0],
-            settings(2, false),
-            &mut d_mean,
-            &mut sums,
-        );
+        let (d_mean, d_ls, sums) = head(&rows);
         assert_eq!((d_mean, d_ls, sums.clipped), ([0.0; 2], [0.0; 2], 1.0));
         assert!((sums.pg_loss + 2.0 * 1.2).abs() < 1e-6);
     }

@@ -94,7 +94,7 @@ fn any_thread_count_gives_the_same_weights() {
     let one = run(1, 16);
     assert_eq!(
         one.1.step,
-        3 * 2 * 4,
+        3 * 2 * 6,
         "3 updates × 2 epochs × 6 minibatches"
     );
     for threads in [2, 3, 4] {
