@@ -260,24 +260,20 @@ impl<'a> Shared<'a> {
     /// squared norms; returns the minibatch's loss sums, added in item order.
     fn sum_parts(&self, owned: &mut [OwnedPart]) -> ShardSums {
         let mut total = ShardSums::default();
-        let items: Vec<Vec<_>> = self
-            .items
+        self.items
             .iter()
-            .map(|net| {
-                net.iter()
-                    .map(|i| i.read().unwrap_or_else(PoisonError::into_inner))
-                    .collect()
-            })
-            .collect();
-        items.iter().flatten().for_each(|i| total.add(&i.sums));
+            .flatten()
+            .for_each(|i| total.add(&read(i).sums));
         let shape = &self.learner.shape;
         for o in owned {
             let part = &self.plan.parts[o.part];
             let origin = part.net.range(shape).start;
             let local = part.range.start - origin..part.range.end - origin;
-            let shards = &items[part.net as usize];
-            o.grads.copy_from_slice(&shards[0].grads[local.clone()]);
+            let shards = &self.items[part.net as usize];
+            o.grads
+                .copy_from_slice(&read(&shards[0]).grads[local.clone()]);
             for s in &shards[1..] {
+                let s = read(s);
                 vectorized(|| {
                     o.grads
                         .iter_mut()
@@ -368,4 +364,9 @@ impl<'a> Shared<'a> {
             grad_norm: f64::from(grad_norm),
         }
     }
+}
+
+/// An item's output, for reading after the barrier that ends phase 1.
+fn read(item: &RwLock<ItemOut>) -> std::sync::RwLockReadGuard<'_, ItemOut> {
+    item.read().unwrap_or_else(PoisonError::into_inner)
 }
