@@ -18,6 +18,7 @@ pub mod rng;
 pub mod rollout;
 pub mod run_dir;
 pub mod telemetry;
+pub mod terrain;
 pub mod wire;
 
 pub use config::{AreaKind, Config, ConfigError};

@@ -27,7 +27,7 @@ pub struct SharedTerrain {
 
 impl SharedTerrain {
     pub fn new(terrain: Terrain) -> Self {
-        let (shape, centre) = terrain.shape();
+        let (shape, centre) = crate::terrain::shape(&terrain);
         Self {
             terrain: Arc::new(terrain),
             shape,

@@ -29,8 +29,8 @@ use std::path::PathBuf;
 /// Errors of the simulator library, each naming what it is about.
 #[derive(Debug, thiserror::Error)]
 pub enum SimError {
-    #[error("heightmap {path}: {reason}")]
-    Heightmap { path: PathBuf, reason: String },
+    #[error(transparent)]
+    Heightmap(#[from] common::terrain::HeightmapError),
     #[error("policy weights {path}: {reason}")]
     Weights { path: PathBuf, reason: String },
     #[error("telemetry {path}: {reason}")]

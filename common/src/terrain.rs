@@ -1,0 +1,482 @@
+//! The lava-tube floor: a height grid covering both training areas (SPEC S1) and the mixed
+//! course.
+//!
+//! Procedural by default (deterministic from `terrain.seed`): millimetre micro-relief
+//! everywhere, plus multi-octave bumps inside the rough area scaled by `roughness-scale`.
+//! A measured heightmap (16-bit PNG or a plain `.grid` text file) can replace it.
+//! The grid is built once and shared by every env's physics world (sim-proc makes it a
+//! collider); the map and the Rerun recording draw the same grid.
+
+use crate::config::{HeightmapConfig, Rect, TerrainConfig};
+use std::path::{Path, PathBuf};
+
+/// A heightmap file that cannot be used, named with why.
+#[derive(Debug, thiserror::Error)]
+#[error("heightmap {path}: {reason}")]
+pub struct HeightmapError {
+    pub path: PathBuf,
+    pub reason: String,
+}
+
+/// Heights on a regular grid. Row `i` runs along +Z, column `j` along +X; sample `(i, j)` sits
+/// at `(x0 + j·cell, z0 + i·cell)`. Heights are metres, Y up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Terrain {
+    x0: f64,
+    z0: f64,
+    cell: f64,
+    rows: usize,
+    cols: usize,
+    /// Column-major like parry's `Array2`: index `i + j·rows`.
+    heights: Vec<f32>,
+}
+
+impl Terrain {
+    /// The floor for `cfg`: the user's heightmap if one is set, the procedural one otherwise.
+    pub fn build(cfg: &TerrainConfig) -> Result<Self, HeightmapError> {
+        match &cfg.heightmap {
+            Some(h) => Self::load(h),
+            None => Ok(Self::procedural(cfg)),
+        }
+    }
+
+    /// SPEC S1 (interpretation): a procedural floor covering both areas and the mixed course
+    /// plus a border; bumps in the rough area and the mixed course's rough part.
+    pub fn procedural(cfg: &TerrainConfig) -> Self {
+        let areas = [cfg.flat_area, cfg.rough_area, cfg.mixed_area];
+        let lo = |f: fn(&Rect) -> f64| areas.iter().map(f).fold(f64::INFINITY, f64::min);
+        let hi = |f: fn(&Rect) -> f64| areas.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+        let x0 = lo(|a| a.x[0]) - cfg.border;
+        let x1 = hi(|a| a.x[1]) + cfg.border;
+        let z0 = lo(|a| a.z[0]) - cfg.border;
+        let z1 = hi(|a| a.z[1]) + cfg.border;
+        let cols = ((x1 - x0) / cfg.cell_size).ceil() as usize + 1;
+        let rows = ((z1 - z0) / cfg.cell_size).ceil() as usize + 1;
+        let micro = Noise::new(cfg.seed, 0);
+        let bumps = Noise::new(cfg.seed, 1);
+        let rough_peak = cfg.rough_amplitude * cfg.roughness_scale;
+        let mut heights = vec![0.0f32; rows * cols];
+        for j in 0..cols {
+            for i in 0..rows {
+                let (x, z) = (x0 + j as f64 * cfg.cell_size, z0 + i as f64 * cfg.cell_size);
+                let mut h = cfg.flat_relief
+                    * micro.fbm(x / cfg.flat_wavelength, z / cfg.flat_wavelength, 2);
+                let w = rough_weight(&cfg.rough_area, cfg.blend, x, z).max(rough_weight(
+                    &cfg.mixed_rough,
+                    cfg.blend,
+                    x,
+                    z,
+                ));
+                if w > 0.0 {
+                    let octaves = cfg.rough_octaves;
+                    h += w
+                        * rough_peak
+                        * bumps.fbm(x / cfg.rough_wavelength, z / cfg.rough_wavelength, octaves);
+                }
+                heights[i + j * rows] = h as f32;
+            }
+        }
+        Self {
+            x0,
+            z0,
+            cell: cfg.cell_size,
+            rows,
+            cols,
+            heights,
+        }
+    }
+
+    /// Loads a user heightmap: `.png` (16-bit grayscale) or anything else as a `.grid` text file.
+    pub fn load(h: &HeightmapConfig) -> Result<Self, HeightmapError> {
+        let bad = |reason: String| HeightmapError {
+            path: h.path.clone(),
+            reason,
+        };
+        let (rows, cols, row_major) = if h
+            .path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            read_png16(&h.path, h.height_scale).map_err(bad)?
+        } else {
+            read_grid(&h.path).map_err(bad)?
+        };
+        if rows < 2 || cols < 2 {
+            return Err(bad(format!(
+                "needs at least 2×2 samples, got {rows}×{cols}"
+            )));
+        }
+        if let Some(k) = row_major.iter().position(|v| !v.is_finite()) {
+            return Err(bad(format!("sample {k} is not finite")));
+        }
+        let mut heights = vec![0.0f32; rows * cols];
+        for i in 0..rows {
+            for j in 0..cols {
+                heights[i + j * rows] = row_major[i * cols + j] as f32;
+            }
+        }
+        Ok(Self {
+            x0: h.origin[0],
+            z0: h.origin[1],
+            cell: h.metres_per_pixel,
+            rows,
+            cols,
+            heights,
+        })
+    }
+
+    /// World-space X-Z bounds `[x0, x1] × [z0, z1]` of the grid.
+    pub fn bounds(&self) -> Rect {
+        Rect {
+            x: [self.x0, self.x0 + (self.cols - 1) as f64 * self.cell],
+            z: [self.z0, self.z0 + (self.rows - 1) as f64 * self.cell],
+        }
+    }
+
+    /// Ground height at `(x, z)`, following parry's triangulation of each cell so it equals
+    /// the collider's surface (clamped to the grid's edge outside it).
+    pub fn height_at(&self, x: f64, z: f64) -> f64 {
+        let u = ((x - self.x0) / self.cell).clamp(0.0, (self.cols - 1) as f64);
+        let v = ((z - self.z0) / self.cell).clamp(0.0, (self.rows - 1) as f64);
+        let (j, i) = (
+            (u.floor() as usize).min(self.cols - 2),
+            (v.floor() as usize).min(self.rows - 2),
+        );
+        let (fx, fz) = (u - j as f64, v - i as f64);
+        let h00 = self.sample(i, j);
+        let h01 = self.sample(i, j + 1);
+        let h10 = self.sample(i + 1, j);
+        let h11 = self.sample(i + 1, j + 1);
+        // parry splits each cell along the diagonal from (i + 1, j) to (i, j + 1).
+        if fx + fz <= 1.0 {
+            h00 + fx * (h01 - h00) + fz * (h10 - h00)
+        } else {
+            h11 + (1.0 - fx) * (h10 - h11) + (1.0 - fz) * (h01 - h11)
+        }
+    }
+
+    /// Samples along Z (rows) and X (columns).
+    pub fn dims(&self) -> (usize, usize) {
+        (self.rows, self.cols)
+    }
+
+    /// Ground distance between neighbouring samples, metres.
+    pub fn cell(&self) -> f64 {
+        self.cell
+    }
+
+    /// The heights, column-major (index `i + j·rows`, row `i` along +Z, column `j` along +X),
+    /// as parry's heightfield takes them.
+    pub fn heights(&self) -> &[f32] {
+        &self.heights
+    }
+
+    /// The height of sample `(i, j)`: row `i` along +Z, column `j` along +X.
+    pub fn sample(&self, i: usize, j: usize) -> f64 {
+        f64::from(self.heights[i.min(self.rows - 1) + j.min(self.cols - 1) * self.rows])
+    }
+}
+
+/// 1 inside the rough rectangle, fading smoothly to 0 at `blend` metres outside it.
+fn rough_weight(r: &Rect, blend: f64, x: f64, z: f64) -> f64 {
+    let dx = (r.x[0] - x).max(x - r.x[1]).max(0.0);
+    let dz = (r.z[0] - z).max(z - r.z[1]).max(0.0);
+    let d = (dx * dx + dz * dz).sqrt();
+    if blend <= 0.0 {
+        return if d == 0.0 { 1.0 } else { 0.0 };
+    }
+    let t = (1.0 - d / blend).clamp(0.0, 1.0);
+    t * t * (3.0 - 2.0 * t)
+}
+
+/// Deterministic 2-D value noise with quintic interpolation.
+struct Noise {
+    seed: u64,
+}
+
+impl Noise {
+    fn new(seed: u64, layer: u64) -> Self {
+        Self {
+            seed: crate::Rng::derive(seed, layer).next_u64(),
+        }
+    }
+
+    /// Lattice value in [-1, 1].
+    fn lattice(&self, i: i64, j: i64) -> f64 {
+        let mut h = self.seed
+            ^ (i as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15)
+            ^ (j as u64).wrapping_mul(0xC2B2_AE3D_27D4_EB4F);
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xFF51_AFD7_ED55_8CCD);
+        h ^= h >> 33;
+        h = h.wrapping_mul(0xC4CE_B9FE_1A85_EC53);
+        h ^= h >> 33;
+        (h >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+    }
+
+    fn value(&self, x: f64, z: f64) -> f64 {
+        let (i, j) = (x.floor(), z.floor());
+        let (fx, fz) = (fade(x - i), fade(z - j));
+        let (i, j) = (i as i64, j as i64);
+        let a = self.lattice(i, j) + fx * (self.lattice(i + 1, j) - self.lattice(i, j));
+        let b = self.lattice(i, j + 1) + fx * (self.lattice(i + 1, j + 1) - self.lattice(i, j + 1));
+        a + fz * (b - a)
+    }
+
+    /// Fractal sum of `octaves` layers (frequency ×2, amplitude ×½), normalised so the
+    /// largest possible magnitude is 1.
+    fn fbm(&self, x: f64, z: f64, octaves: usize) -> f64 {
+        let (mut sum, mut norm, mut amp, mut freq) = (0.0, 0.0, 1.0, 1.0);
+        for o in 0..octaves {
+            // Offset each octave so lattice points do not line up.
+            let shift = 17.31 * o as f64;
+            sum += amp * self.value(x * freq + shift, z * freq - shift);
+            norm += amp;
+            amp *= 0.5;
+            freq *= 2.0;
+        }
+        sum / norm
+    }
+}
+
+fn fade(t: f64) -> f64 {
+    t * t * t * (t * (t * 6.0 - 15.0) + 10.0)
+}
+
+/// The most samples a heightmap may have per side: 8192 × 8192 is a 256 MiB height grid,
+/// far past any lava tube scanned at centimetres; a larger header is a broken file.
+const MAX_SIDE: usize = 8192;
+
+/// Refuses dimensions no heightmap has, before anything is allocated for them.
+fn check_side(rows: usize, cols: usize) -> Result<(), String> {
+    if rows > MAX_SIDE || cols > MAX_SIDE {
+        return Err(format!(
+            "{rows}×{cols} samples: at most {MAX_SIDE}×{MAX_SIDE}"
+        ));
+    }
+    Ok(())
+}
+
+/// A 16-bit grayscale PNG as row-major heights (metres): row 0 at the map's origin Z.
+fn read_png16(path: &Path, height_scale: f64) -> Result<(usize, usize, Vec<f64>), String> {
+    let file = std::fs::File::open(path).map_err(|e| e.to_string())?;
+    let mut reader = png::Decoder::new(std::io::BufReader::new(file))
+        .read_info()
+        .map_err(|e| e.to_string())?;
+    let info = reader.info();
+    if info.color_type != png::ColorType::Grayscale || info.bit_depth != png::BitDepth::Sixteen {
+        return Err(format!(
+            "must be 16-bit grayscale, is {:?} {:?}",
+            info.color_type, info.bit_depth
+        ));
+    }
+    let (cols, rows) = (info.width as usize, info.height as usize);
+    check_side(rows, cols)?;
+    let mut buf = vec![0u8; reader.output_buffer_size().ok_or("image too large")?];
+    reader.next_frame(&mut buf).map_err(|e| e.to_string())?;
+    let heights = buf
+        .chunks_exact(2)
+        .take(rows * cols)
+        .map(|b| f64::from(u16::from_be_bytes([b[0], b[1]])) / f64::from(u16::MAX) * height_scale)
+        .collect();
+    Ok((rows, cols, heights))
+}
+
+/// The plain grid format: `rows cols` on the first line, then `rows` lines of `cols` heights.
+fn read_grid(path: &Path) -> Result<(usize, usize, Vec<f64>), String> {
+    let text = std::fs::read_to_string(path).map_err(|e| e.to_string())?;
+    let mut lines = text
+        .lines()
+        .filter(|l| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
+    let header = lines.next().ok_or("empty file")?;
+    let dims: Vec<usize> = header
+        .split_whitespace()
+        .map(|t| {
+            t.parse()
+                .map_err(|_| format!("header `{header}` must be `rows cols`"))
+        })
+        .collect::<Result<_, _>>()?;
+    let [rows, cols] = dims[..] else {
+        return Err(format!("header `{header}` must be `rows cols`"));
+    };
+    check_side(rows, cols)?;
+    let mut heights = Vec::with_capacity(rows * cols);
+    for (n, line) in lines.enumerate() {
+        let row: Vec<f64> = line
+            .split_whitespace()
+            .map(|t| {
+                t.parse()
+                    .map_err(|_| format!("row {}: `{t}` is not a number", n + 1))
+            })
+            .collect::<Result<_, _>>()?;
+        if row.len() != cols {
+            return Err(format!(
+                "row {} has {} values, expected {cols}",
+                n + 1,
+                row.len()
+            ));
+        }
+        heights.extend(row);
+    }
+    if heights.len() != rows * cols {
+        return Err(format!(
+            "{} rows, expected {rows}",
+            heights.len() / cols.max(1)
+        ));
+    }
+    Ok((rows, cols, heights))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn rms_slope(t: &Terrain, area: &Rect) -> f64 {
+        let (mut s, mut n) = (0.0, 0);
+        let step = 0.02;
+        let mut x = area.x[0];
+        while x < area.x[1] {
+            let mut z = area.z[0];
+            while z < area.z[1] {
+                let g = (t.height_at(x + step, z) - t.height_at(x, z)) / step;
+                s += g * g;
+                n += 1;
+                z += step;
+            }
+            x += step;
+        }
+        (s / f64::from(n)).sqrt()
+    }
+
+    #[test]
+    fn procedural_floor_is_deterministic_and_rougher_in_the_rough_area() {
+        let cfg = TerrainConfig::default();
+        let a = Terrain::procedural(&cfg);
+        assert_eq!(a, Terrain::procedural(&cfg));
+        let other = Terrain::procedural(&TerrainConfig {
+            seed: 7,
+            ..cfg.clone()
+        });
+        assert_ne!(a.heights, other.heights);
+        let b = a.bounds();
+        assert!(
+            b.x[0] <= -10.0 && b.x[1] >= 1.5 && b.z[0] <= -2.0 && b.z[1] >= 6.0,
+            "{b:?}"
+        );
+        let flat = rms_slope(&a, &cfg.flat_area);
+        let rough = rms_slope(&a, &cfg.rough_area);
+        assert!(flat > 0.0, "the flat area has micro-relief");
+        assert!(rough > 2.5 * flat, "rough {rough} vs flat {flat}");
+        // The mixed course: rough where it says, flat past the blend.
+        let course_rough = rms_slope(&a, &cfg.mixed_rough);
+        let course_flat = rms_slope(
+            &a,
+            &Rect {
+                x: [cfg.mixed_rough.x[1] + cfg.blend, cfg.mixed_area.x[1]],
+                z: cfg.mixed_area.z,
+            },
+        );
+        assert!(
+            course_rough > 0.7 * rough && course_rough < 1.3 * rough,
+            "course's rough part {course_rough} vs rough area {rough}"
+        );
+        assert!(
+            course_flat < 1.3 * flat,
+            "course's flat part {course_flat} vs flat area {flat}"
+        );
+        // SPEC S1: the flat area's relief stays within its peak height, and is not a plane.
+        let hs: Vec<f64> = (0..100)
+            .map(|k| a.height_at(-2.0 + 0.02 * f64::from(k), 0.0))
+            .collect();
+        assert!(hs.iter().all(|h| h.abs() <= cfg.flat_relief + 1e-6));
+        assert!(hs.iter().any(|h| h.abs() > 0.1 * cfg.flat_relief));
+    }
+
+    #[test]
+    fn roughness_scale_scales_the_bumps() {
+        let cfg = TerrainConfig {
+            flat_relief: 0.0,
+            ..TerrainConfig::default()
+        };
+        let full = Terrain::procedural(&TerrainConfig {
+            roughness_scale: 1.0,
+            ..cfg.clone()
+        });
+        let scaled = Terrain::procedural(&TerrainConfig {
+            roughness_scale: 0.8,
+            ..cfg.clone()
+        });
+        let (x, z) = (-8.3, 3.1);
+        let (hf, hs) = (full.height_at(x, z), scaled.height_at(x, z));
+        assert!(hf.abs() > 1e-4);
+        assert!((hs - 0.8 * hf).abs() < 1e-6, "{hs} vs 0.8 × {hf}");
+    }
+
+    #[test]
+    fn height_at_interpolates_the_triangles() {
+        let t = Terrain {
+            x0: 0.0,
+            z0: 0.0,
+            cell: 1.0,
+            rows: 2,
+            cols: 2,
+            heights: vec![0.0, 1.0, 2.0, 5.0],
+        };
+        // (i, j): h00 = 0, h10 (z+1) = 1, h01 (x+1) = 2, h11 = 5 (not planar).
+        assert!((t.height_at(0.0, 0.0) - 0.0).abs() < 1e-12);
+        assert!((t.height_at(1.0, 1.0) - 5.0).abs() < 1e-12);
+        // Lower triangle (h00, h10, h01): the plane 2·fx + 1·fz.
+        assert!((t.height_at(0.5, 0.25) - (2.0 * 0.5 + 0.25)).abs() < 1e-12);
+        // Upper triangle (h10, h11, h01): 5 + ¼·(1 − 5) + ¼·(2 − 5) = 3.25 (the other diagonal gives 3.75).
+        assert!((t.height_at(0.75, 0.75) - 3.25).abs() < 1e-12);
+    }
+
+    #[test]
+    fn grid_and_png_heightmaps_load() {
+        let dir = std::env::temp_dir().join(format!("lavatube-terrain-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).expect("tmp dir");
+        let grid = dir.join("floor.grid");
+        std::fs::write(&grid, "# two rows\n2 3\n0 0.1 0.2\n0.3 0.4 0.5\n").expect("write");
+        let h = HeightmapConfig {
+            path: grid.clone(),
+            metres_per_pixel: 0.5,
+            height_scale: 1.0,
+            origin: [1.0, 2.0],
+        };
+        let t = Terrain::load(&h).expect("grid loads");
+        assert_eq!(
+            t.bounds(),
+            Rect {
+                x: [1.0, 2.0],
+                z: [2.0, 2.5]
+            }
+        );
+        assert!((t.height_at(2.0, 2.5) - 0.5).abs() < 1e-6);
+        std::fs::write(&grid, "2 3\n0 0.1\n").expect("write");
+        let err = Terrain::load(&h).expect_err("short row").to_string();
+        assert!(
+            err.contains("floor.grid") && err.contains("row 1 has 2 values"),
+            "{err}"
+        );
+
+        let png_path = dir.join("floor.png");
+        let file = std::fs::File::create(&png_path).expect("create");
+        let mut enc = png::Encoder::new(file, 2, 2);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Sixteen);
+        let mut w = enc.write_header().expect("header");
+        w.write_image_data(&[0, 0, 0xFF, 0xFF, 0x80, 0x00, 0, 0])
+            .expect("data");
+        w.finish().expect("finish");
+        let h = HeightmapConfig {
+            path: png_path,
+            metres_per_pixel: 0.1,
+            height_scale: 2.0,
+            origin: [0.0, 0.0],
+        };
+        let t = Terrain::load(&h).expect("png loads");
+        assert!((t.height_at(0.1, 0.0) - 2.0).abs() < 1e-6);
+        assert!((t.height_at(0.0, 0.1) - 2.0 * 32768.0 / 65535.0).abs() < 1e-4);
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}
