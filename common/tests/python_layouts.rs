@@ -1,8 +1,10 @@
 //! The Python package's `python/lavatube/layouts.json` against the wire types as the compiler
 //! lays them out: iceoryx2 type name, size, alignment and field offsets of every message type,
-//! and the constants that come with them. `python/tests/test_layouts.py` checks the ctypes
-//! twins against the same file, so neither side can drift from the other unnoticed.
+//! and the constants that come with them (event bits, sizes, the control channel's event id).
+//! `python/tests/test_layouts.py` checks the ctypes twins against the same file, so neither
+//! side can drift from the other unnoticed.
 
+use common::ipc::CONTROL_SHUTDOWN;
 use common::policy::MAX_HIDDEN;
 use common::rollout::Transition;
 use common::wire::{
@@ -159,6 +161,7 @@ fn expected() -> Value {
             "CLASS_UNKNOWN": CLASS_UNKNOWN,
             "SWAP_PATH_BYTES": SWAP_PATH_BYTES,
             "SWAP_MESSAGE_BYTES": SWAP_MESSAGE_BYTES,
+            "CONTROL_SHUTDOWN": CONTROL_SHUTDOWN,
         },
     })
 }
