@@ -4,7 +4,7 @@
 
 use common::config::{Restart, RestartPolicy};
 use indicatif::ProgressBar;
-use lavatube::runtime::{Child, Event, Output, Role, Spec, Supervised, ladder};
+use lavatube::runtime::{Child, Event, Lines, Output, Role, Spec, Supervised, ladder};
 use std::os::unix::process::ExitStatusExt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
@@ -23,7 +23,7 @@ fn a_process_that_ignores_sigterm_is_killed_after_the_grace_period() {
         Path::new("/bin/sh"),
         &script,
         logs.path(),
-        Output::Relay(&bar),
+        Output::Relay(&bar, Lines::All),
     )
     .expect("spawn");
     let log = logs.path().join("fixture.log");
@@ -117,7 +117,7 @@ fn the_restart_budget_renews_once_restarts_leave_its_window() {
 /// Watches `spec`'s process, restarts and all, until it exits for good; returns what it saw.
 fn supervise_to_the_end(spec: Spec, logs: &Path) -> (Supervised, Vec<String>) {
     let bar = ProgressBar::hidden();
-    let mut slot = Supervised::start(spec, logs, &bar).expect("start");
+    let mut slot = Supervised::start(spec, logs, &bar, Lines::All).expect("start");
     let mut events = Vec::new();
     let give_up = Instant::now() + Duration::from_secs(30);
     while slot.alive() {

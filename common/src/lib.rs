@@ -11,6 +11,8 @@ pub mod episode;
 pub mod ipc;
 pub mod logging;
 #[cfg(feature = "plot")]
+pub mod map;
+#[cfg(feature = "plot")]
 pub mod plot;
 pub mod policy;
 pub mod refusals;
@@ -18,7 +20,9 @@ pub mod rng;
 pub mod rollout;
 pub mod run_dir;
 pub mod telemetry;
+pub mod tensorboard;
 pub mod terrain;
+pub mod track;
 pub mod wire;
 
 pub use config::{AreaKind, Config, ConfigError};

@@ -6,9 +6,13 @@
 //!   config.toml           the resolved config the run started with
 //!   summary.json          how the run ended, written last
 //!   telemetry.csv         the sim's ticks, with run.telemetry-csv
+//!   track.csv             every robot's thinned path, targets and endings
+//!   map.png               the world with those paths, drawn when the run ends
+//!   launcher/             the launcher's TensorBoard events (steps/s, lag, terrain accuracy)
 //!   learner-config-N.toml the config of the N-th swapped-in learner
 //!   logs/<process>.log    each process's output
 //!   metrics.csv           one row per update of the general model's learner
+//!   events.out.tfevents.* the same rows as TensorBoard scalars
 //!   curves.png            those rows drawn
 //!   checkpoints/checkpoint-<update, 10 digits>.ckpt
 //!   learner-flat/, learner-rough/   the same three for each specialist's learner
@@ -24,6 +28,10 @@ pub const CONFIG_TOML: &str = "config.toml";
 pub const SUMMARY_JSON: &str = "summary.json";
 /// The sim's telemetry, one row per tick, when `run.telemetry-csv` is on.
 pub const TELEMETRY_CSV: &str = "telemetry.csv";
+/// Every robot's thinned path, targets and endings (`common::track`), written by the sim.
+pub const TRACK_CSV: &str = "track.csv";
+/// The map of the world with the robots' paths, drawn from [`TRACK_CSV`].
+pub const MAP_PNG: &str = "map.png";
 /// The directory of the processes' log files (see [`log_file`]).
 pub const LOGS: &str = "logs";
 /// A learner's per-update metrics, in its [`learner_dir`].

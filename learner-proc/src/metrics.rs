@@ -1,4 +1,5 @@
-//! Per-update metrics and the run directory's `metrics.csv`.
+//! Per-update metrics: the run directory's `metrics.csv`, and the same numbers as TensorBoard
+//! scalars in an event file beside it.
 //!
 //! Episode statistics come from the simulator, which alone knows why an episode ended: a
 //! positive reward on the last step does not mean success (progress rewards are positive too,
@@ -9,6 +10,7 @@ use std::path::{Path, PathBuf};
 
 use common::episode::EpisodeStats;
 use common::run_dir::METRICS_CSV;
+use common::tensorboard::EventWriter;
 use serde::{Deserialize, Serialize};
 
 use crate::LearnerError;
@@ -60,6 +62,63 @@ pub struct UpdateMetrics {
     pub chunks_by_source: String,
 }
 
+/// TensorBoard tags of the columns ML-Agents also reports, under ML-Agents' names, so its
+/// users find them where they look; every other column is `lavatube/<column>`.
+const ML_AGENTS_TAGS: [(&str, &str); 5] = [
+    ("mean_episode_return", "Environment/Cumulative Reward"),
+    ("policy_loss", "Losses/Policy Loss"),
+    ("value_loss", "Losses/Value Loss"),
+    ("entropy", "Policy/Entropy"),
+    ("learning_rate", "Policy/Learning Rate"),
+];
+
+impl UpdateMetrics {
+    /// Every numeric column with its value (episode columns only when an episode ended).
+    fn columns(&self) -> Vec<(&'static str, f64)> {
+        let mut c = vec![
+            ("update", self.update as f64),
+            ("global_step", self.global_step as f64),
+            ("policy_version", f64::from(self.policy_version)),
+            ("learning_rate", self.learning_rate),
+            ("policy_loss", self.policy_loss),
+            ("value_loss", self.value_loss),
+            ("entropy", self.entropy),
+            ("old_approx_kl", self.old_approx_kl),
+            ("approx_kl", self.approx_kl),
+            ("clip_fraction", self.clip_fraction),
+            ("explained_variance", self.explained_variance),
+            ("grad_norm", self.grad_norm),
+            ("epochs", self.epochs as f64),
+            ("samples_per_second", self.samples_per_second),
+            ("mean_policy_lag", self.mean_policy_lag),
+            ("stale_transitions", self.stale_transitions as f64),
+            ("episodes", self.episodes as f64),
+        ];
+        for (name, v) in [
+            ("mean_episode_return", self.mean_episode_return),
+            ("success_rate", self.success_rate),
+            ("mean_reach_time_s", self.mean_reach_time_s),
+        ] {
+            c.extend(v.map(|v| (name, v)));
+        }
+        c
+    }
+
+    /// The columns as TensorBoard scalars (see [`ML_AGENTS_TAGS`]).
+    pub fn scalars(&self) -> Vec<(String, f64)> {
+        self.columns()
+            .into_iter()
+            .map(|(column, v)| {
+                let tag = ML_AGENTS_TAGS
+                    .iter()
+                    .find(|(c, _)| *c == column)
+                    .map_or_else(|| format!("lavatube/{column}"), |(_, t)| (*t).to_string());
+                (tag, v)
+            })
+            .collect()
+    }
+}
+
 /// Episode columns of a metrics row.
 pub(crate) struct EpisodeSummary {
     pub count: usize,
@@ -91,10 +150,13 @@ impl EpisodeSummary {
 }
 
 /// Appends [`UpdateMetrics`] rows to `<run-dir>/metrics.csv`, writing the header only when the
-/// file is new, so a resumed learner continues the same file.
+/// file is new, so a resumed learner continues the same file; and each row's
+/// [`scalars`](UpdateMetrics::scalars) to a TensorBoard event file in the same directory (a
+/// new one per learner process, opened at its first row).
 pub struct MetricsLog {
     path: PathBuf,
     writer: csv::Writer<File>,
+    events: Option<EventWriter>,
 }
 
 impl MetricsLog {
@@ -113,17 +175,36 @@ impl MetricsLog {
         let writer = csv::WriterBuilder::new()
             .has_headers(is_new)
             .from_writer(file);
-        Ok(Self { path, writer })
+        Ok(Self {
+            path,
+            writer,
+            events: None,
+        })
     }
 
-    /// Appends one row and flushes it, so a crash loses at most the update in flight.
+    /// Appends one row and flushes it, so a crash loses at most the update in flight; then
+    /// its scalars to the event file.
     pub fn append(&mut self, metrics: &UpdateMetrics) -> Result<(), LearnerError> {
         let err = |source| LearnerError::Metrics {
             path: self.path.clone(),
             source,
         };
         self.writer.serialize(metrics).map_err(err)?;
-        self.writer.flush().map_err(|e| err(e.into()))
+        self.writer.flush().map_err(|e| err(e.into()))?;
+        let dir = self.path.parent().unwrap_or(Path::new("."));
+        let events = match &mut self.events {
+            Some(e) => e,
+            None => self.events.insert(
+                EventWriter::create(dir)
+                    .map_err(LearnerError::io("creating an event file in", dir))?,
+            ),
+        };
+        let scalars = metrics.scalars();
+        let values: Vec<(&str, f64)> = scalars.iter().map(|(t, v)| (t.as_str(), *v)).collect();
+        let path = events.path().to_path_buf();
+        events
+            .scalars(metrics.global_step, &values)
+            .map_err(LearnerError::io("writing", path))
     }
 
     pub fn path(&self) -> &Path {
@@ -185,6 +266,34 @@ mod tests {
     }
 
     #[test]
+    fn every_numeric_csv_column_is_a_tensorboard_scalar() {
+        let mut w = csv::Writer::from_writer(Vec::new());
+        let mut m = metrics(3);
+        m.mean_episode_return = Some(12.5);
+        m.success_rate = Some(0.75);
+        m.mean_reach_time_s = Some(6.1);
+        w.serialize(&m).expect("row");
+        let text = String::from_utf8(w.into_inner().expect("csv")).expect("utf-8");
+        let header: Vec<&str> = text.lines().next().expect("header").split(',').collect();
+        let scalars = m.scalars();
+        let tags: Vec<&str> = scalars.iter().map(|(t, _)| t.as_str()).collect();
+        for column in header.iter().filter(|c| **c != "chunks_by_source") {
+            let tag = ML_AGENTS_TAGS
+                .iter()
+                .find(|(c, _)| c == column)
+                .map_or_else(|| format!("lavatube/{column}"), |(_, t)| (*t).to_string());
+            assert!(tags.contains(&tag.as_str()), "{column} → {tag} missing");
+        }
+        assert_eq!(tags.len(), header.len() - 1, "{tags:?}");
+        let value = |tag: &str| scalars.iter().find(|(t, _)| t == tag).map(|(_, v)| *v);
+        assert_eq!(value("Environment/Cumulative Reward"), Some(12.5));
+        assert_eq!(value("Losses/Policy Loss"), Some(-0.01));
+        assert_eq!(value("lavatube/global_step"), Some(6144.0));
+        // No episode ended: no episode scalars (TensorBoard shows a gap, not a zero).
+        assert_eq!(metrics(1).scalars().len(), header.len() - 4);
+    }
+
+    #[test]
     fn csv_header_once_across_reopen() {
         let dir = tempfile::tempdir().expect("tempdir");
         MetricsLog::open(dir.path())
@@ -194,6 +303,14 @@ mod tests {
         let mut log = MetricsLog::open(dir.path()).expect("reopen");
         log.append(&metrics(2)).expect("append");
         let text = std::fs::read_to_string(log.path()).expect("read");
+        let events = std::fs::read_dir(dir.path())
+            .expect("dir")
+            .filter(|e| {
+                e.as_ref()
+                    .is_ok_and(|e| e.file_name().to_string_lossy().contains("tfevents"))
+            })
+            .count();
+        assert_eq!(events, 2, "an event file per learner process, beside metrics.csv");
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 3, "{text}");
         assert!(

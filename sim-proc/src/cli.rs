@@ -52,6 +52,10 @@ pub struct Args {
     /// Write per-tick telemetry (CSV, one row per env and tick) here; in a run too.
     #[arg(long)]
     pub telemetry: Option<PathBuf>,
+    /// In a run: write every env's thinned path, targets and endings here (`track.csv`, what
+    /// the run's map is drawn from).
+    #[arg(long, requires = "run_id")]
+    pub track: Option<PathBuf>,
     /// Override `run.seed`.
     #[arg(long)]
     pub seed: Option<u64>,

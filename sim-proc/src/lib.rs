@@ -19,6 +19,7 @@ pub mod switching;
 pub mod task;
 pub mod telemetry_csv;
 pub mod terrain;
+pub mod track;
 
 pub use cli::{Args, run};
 pub use env::{Env, SharedTerrain, StepInfo};

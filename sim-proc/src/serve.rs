@@ -11,6 +11,7 @@ use crate::env::SharedTerrain;
 use crate::switching::{PolicySet, Switcher};
 use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::terrain::Terrain;
+use crate::track::SimTrack;
 use anyhow::Context;
 use common::config::{LearnMode, PolicySlot};
 use common::ipc::{self, Bus, Receiver};
@@ -197,6 +198,11 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
     let seed = common::Rng::source_seed(cfg.run.seed, args.source);
     let mut fleet = Fleet::new(&cfg.sim, &terrain, seed);
     let mut csv = telemetry.map(TelemetryCsv::append).transpose()?;
+    let mut track = args
+        .track
+        .as_deref()
+        .map(|p| SimTrack::append(p, n))
+        .transpose()?;
     let mut inbox = Inbox::connect(&bus, seed, !cfg.sim.mean_actions)?;
     let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
@@ -240,6 +246,9 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
                     csv.write(&telemetry_row(env, info))?;
                 }
             }
+            if let Some(t) = track.as_mut() {
+                t.see(&fleet.envs, &driver.infos, &classes);
+            }
             if let Some(est) = terrain_rx.latest()? {
                 for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
                     classes[e.env as usize] = e.class;
@@ -281,6 +290,9 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
         };
         rollout_tx.send(header, &chunk)?;
         tele_tx.flush()?;
+        if let Some(t) = track.as_mut() {
+            t.flush();
+        }
         chunk_id += 1;
         tracing::debug!(
             chunk = chunk_id,
@@ -316,6 +328,9 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
     tele_tx.flush()?;
     if let Some(csv) = csv.as_mut() {
         csv.flush()?;
+    }
+    if let Some(t) = track.as_mut() {
+        t.flush();
     }
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(

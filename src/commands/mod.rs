@@ -4,6 +4,7 @@ mod analyze;
 mod bench;
 mod check_config;
 mod clean;
+mod map;
 mod reproduce;
 mod run;
 mod status;
@@ -39,6 +40,9 @@ pub enum Command {
         /// The config file (TOML).
         config: PathBuf,
     },
+    /// Draw a run's map again (the world, every robot's path by estimated terrain, targets,
+    /// successes and failures), from its run directory or a telemetry CSV.
+    Map(map::MapArgs),
     /// List runs with shared-memory resources and their processes.
     Status,
     /// Measure throughput stage by stage (physics, policy, iceoryx2, learner sync and async,
@@ -69,6 +73,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(args) => bench::bench(args),
         Command::BenchReader(args) => bench::reader(args),
         Command::BenchEcho(args) => bench::echo(args),
+        Command::Map(args) => map::map_command(args),
         Command::Status => status::status(),
         Command::Clean { run_id } => clean::clean(run_id.as_deref()),
     }

@@ -21,6 +21,10 @@ pub struct RunArgs {
     /// No progress bar (for logs and CI).
     #[arg(long)]
     pub quiet: bool,
+    /// Show every log line of the run's processes, not only their warnings and errors (all
+    /// of them are in `<run dir>/logs/` either way).
+    #[arg(long)]
+    pub verbose: bool,
     /// Go on with the stopped run in this directory (killed, or its machine restarted): its
     /// config and run id, each learner from its newest checkpoint (policy versions and the
     /// learning-rate schedule continue), the sim from the env steps that checkpoint learned
@@ -52,6 +56,10 @@ pub struct JoinArgs {
     /// No progress bar (for logs and CI).
     #[arg(long)]
     pub quiet: bool,
+    /// Show every log line of the run's processes, not only their warnings and errors (all
+    /// of them are in `<run dir>/logs/` either way).
+    #[arg(long)]
+    pub verbose: bool,
 }
 
 /// A fresh run id: seconds since the epoch and the launcher's pid, in base 36-ish hex.
@@ -71,7 +79,10 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
         let resumed = ResumedConfig::load(dir)?;
         let host = host(&resumed.cfg)?;
         report_sweep();
-        let finished = Run::resume(&resumed, args.quiet)?.on_host(host).execute()?;
+        let finished = Run::resume(&resumed, args.quiet)?
+            .on_host(host)
+            .verbose(args.verbose)
+            .execute()?;
         return Ok(exit_code(!finished.interrupted));
     }
     let cfg = match &args.config {
@@ -80,7 +91,7 @@ pub fn run(args: RunArgs) -> anyhow::Result<ExitCode> {
     };
     let run_id = args.run_id.clone().unwrap_or_else(new_run_id);
     let host = host(&cfg)?;
-    let completed = execute(&cfg, &run_id, &run_id, args.quiet, host)?;
+    let completed = execute(&cfg, &run_id, &run_id, (args.quiet, args.verbose), host)?;
     Ok(exit_code(completed))
 }
 
@@ -95,7 +106,7 @@ pub fn join(args: JoinArgs) -> anyhow::Result<ExitCode> {
         },
     )?;
     let run_id = args.run_id.unwrap_or_else(new_run_id);
-    let completed = execute(&cfg, &run_id, &run_id, args.quiet, host)?;
+    let completed = execute(&cfg, &run_id, &run_id, (args.quiet, args.verbose), host)?;
     Ok(exit_code(completed))
 }
 
@@ -123,12 +134,13 @@ pub fn execute(
     cfg: &Config,
     dir_name: &str,
     run_id: &str,
-    quiet: bool,
+    (quiet, verbose): (bool, bool),
     host: Host,
 ) -> anyhow::Result<bool> {
     report_sweep();
     let finished = Run::prepare(cfg, dir_name, run_id, quiet)?
         .on_host(host)
+        .verbose(verbose)
         .execute()?;
     Ok(!finished.interrupted)
 }

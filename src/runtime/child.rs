@@ -6,7 +6,7 @@
 //! request (a learner checkpoints first). `waitid(…, WNOWAIT)` reads an exited child's
 //! rusage while leaving it a zombie, so `std` still reaps it and keeps its exit status.
 
-use super::say;
+use super::{Lines, say};
 use anyhow::Context;
 use indicatif::ProgressBar;
 use serde::{Deserialize, Serialize};
@@ -49,9 +49,9 @@ impl Usage {
 /// stays whole and the child never writes into a pipe that dies with the launcher.
 #[derive(Clone, Copy)]
 pub enum Output<'a> {
-    /// Also shown, line by line and prefixed by `[name]`, above the progress bar, by a thread
-    /// that follows the log file.
-    Relay(&'a ProgressBar),
+    /// Also shown (the lines [`Lines`] picks), prefixed by `[name]`, above the progress bar,
+    /// by a thread that follows the log file.
+    Relay(&'a ProgressBar, Lines),
     /// Only in the log: no thread competes with a measurement for the CPU.
     File,
 }
@@ -104,7 +104,9 @@ impl Child {
             .spawn()
             .with_context(|| format!("cannot start {}", bin.display()))?;
         let relay = match output {
-            Output::Relay(bar) => Some(Relay::follow(name, &log, start, bar.clone())?),
+            Output::Relay(bar, lines) => {
+                Some(Relay::follow(name, &log, start, bar.clone(), lines)?)
+            }
             Output::File => None,
         };
         Ok(Self {
@@ -284,6 +286,7 @@ impl Relay {
         log: &Path,
         start: u64,
         bar: ProgressBar,
+        lines: Lines,
     ) -> anyhow::Result<Self> {
         let mut file =
             std::fs::File::open(log).with_context(|| format!("cannot read {}", log.display()))?;
@@ -303,7 +306,10 @@ impl Relay {
                         // A line still being written: finish it on the next look.
                         break;
                     }
-                    say(&bar, format!("[{name}] {}", line.trim_end_matches('\n')));
+                    let text = line.trim_end_matches('\n');
+                    if lines.shows(text) {
+                        say(&bar, format!("[{name}] {text}"));
+                    }
                     line.clear();
                 }
                 if last {

@@ -4,9 +4,12 @@
 //! thin commands over it.
 
 mod bins;
+mod board;
 mod child;
+mod console;
 mod host;
 pub mod ladder;
+pub mod map;
 mod role;
 mod run;
 mod summary;
@@ -16,6 +19,7 @@ mod sweep;
 
 pub use bins::{Binaries, locate};
 pub use child::{Child, Output, Usage};
+pub use console::{Lines, thousands};
 pub use host::Host;
 pub use role::Role;
 pub use run::{Finished, LAUNCHER_NODE, ResumedConfig, Run};

@@ -3,8 +3,10 @@
 //! the run's own telemetry, answers learner swaps, and ends with the stop ladder, the run's
 //! shared memory removed and `summary.json` written.
 
+use super::board::Board;
+use super::console::{self, Rate, Summaries};
 use super::swap::{SwapContext, learner_args, swap_learner};
-use super::{Binaries, Event, Host, Progress, Role, Spec, Summary, Supervised, ladder, say};
+use super::{Binaries, Event, Host, Lines, Progress, Role, Spec, Summary, Supervised, ladder, say};
 use crate::error::UserError;
 use anyhow::Context;
 use common::config::PolicySlot;
@@ -31,6 +33,8 @@ pub struct Run<'a> {
     resume: bool,
     /// This host's part of the run.
     host: Host,
+    /// Which of the children's log lines reach the terminal.
+    lines: Lines,
 }
 
 /// A run directory to resume: its resolved config, and its run id (the directory's name).
@@ -138,7 +142,9 @@ impl<'a> Run<'a> {
             ProgressBar::new(cfg.run.total_steps)
         };
         bar.set_style(
-            ProgressStyle::with_template("{spinner} [{elapsed_precise}] {wide_bar} {human_pos}/{human_len} steps {per_sec} {msg}")
+            ProgressStyle::with_template(
+                "{spinner} {elapsed_precise} [{bar:30}] {human_pos}/{human_len} steps · {msg} · ETA {eta}",
+            )
                 .unwrap_or_else(|_| ProgressStyle::default_bar()),
         );
         Ok(Self {
@@ -151,12 +157,21 @@ impl<'a> Run<'a> {
             bar,
             resume: false,
             host: Host::Whole,
+            lines: Lines::Notices,
         })
     }
 
     /// Runs only this host's part of the run (DESIGN §9).
     pub fn on_host(mut self, host: Host) -> Self {
         self.host = host;
+        self
+    }
+
+    /// Shows every log line of the children, not only their warnings and errors.
+    pub fn verbose(mut self, verbose: bool) -> Self {
+        if verbose {
+            self.lines = Lines::All;
+        }
         self
     }
 
@@ -218,6 +233,10 @@ impl<'a> Run<'a> {
         if self.host.source() != 0 {
             sim_args.extend(["--source".into(), self.host.source().to_string()]);
         }
+        sim_args.extend([
+            "--track".into(),
+            self.dir.join(run_dir::TRACK_CSV).display().to_string(),
+        ]);
         if cfg.run.telemetry_csv {
             sim_args.extend([
                 "--telemetry".into(),
@@ -257,7 +276,7 @@ impl<'a> Run<'a> {
         let grace = Duration::from_millis(self.cfg.supervise.grace_ms);
         let mut members: Vec<Supervised> = Vec::new();
         for spec in self.specs() {
-            match Supervised::start(spec, &self.logs, &self.bar) {
+            match Supervised::start(spec, &self.logs, &self.bar, self.lines) {
                 Ok(s) => members.push(s),
                 Err(e) => {
                     stop_all(&mut members, &|| {}, grace);
@@ -269,7 +288,9 @@ impl<'a> Run<'a> {
             .iter()
             .map(|s| format!("{} {}", s.role().name(), s.child.pid()))
             .collect();
-        say(&self.bar, format!("pids: {}", pids.join(", ")));
+        if self.lines == Lines::All {
+            say(&self.bar, format!("pids: {}", pids.join(", ")));
+        }
 
         let started = Instant::now();
         let mut loop_ = Supervision {
@@ -285,6 +306,13 @@ impl<'a> Run<'a> {
             swaps: 0,
             sim_finished: None,
             grace,
+            rate: Rate::default(),
+            board: Board::new(&self.dir),
+            summaries: Summaries::new(
+                &self.dir,
+                &self.cfg.run.learners,
+                self.cfg.run.summary_every,
+            ),
         };
         let interrupted = loop_.until_done(&ports)?;
         let Supervision {
@@ -323,6 +351,11 @@ impl<'a> Run<'a> {
                 .exit
                 .insert(name.clone(), m.child.status().map(|s| s.to_string()));
             summary.restarts.insert(name, m.restarts);
+        }
+        if self.host.starts(Role::Sim)
+            && let Err(e) = super::map::draw_run(&self.cfg.sim, &self.dir)
+        {
+            eprintln!("lavatube: no map: {e:#}");
         }
         let path = self.dir.join(run_dir::SUMMARY_JSON);
         std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
@@ -364,6 +397,9 @@ struct Supervision<'r, 'a> {
     swaps: u32,
     sim_finished: Option<Instant>,
     grace: Duration,
+    rate: Rate,
+    board: Board,
+    summaries: Summaries,
 }
 
 impl Supervision<'_, '_> {
@@ -425,13 +461,12 @@ impl Supervision<'_, '_> {
         // A learner host sees no telemetry: its progress is what its learners learned from.
         let steps = p.tick.env_steps.max(p.learned_steps);
         bar.set_position(steps.min(self.run.cfg.run.total_steps));
-        bar.set_message(format!(
-            "v{} success {:.0}% terrain {}",
-            p.tick.policy_version,
-            100.0 * p.episodes().success_rate(),
-            p.terrain_accuracy()
-                .map_or("-".into(), |a| format!("{:.0}%", 100.0 * a))
-        ));
+        let rate = self.rate.update(Instant::now(), steps);
+        bar.set_message(console::bar_message(p, rate));
+        if let Some(e) = self.board.write(p, steps, rate) {
+            say(bar, format!("lavatube: {e}"));
+        }
+        self.summaries.print_due(bar);
         Ok(())
     }
 

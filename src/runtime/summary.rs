@@ -135,12 +135,12 @@ impl Summary {
     /// The one line the launcher prints at the end of a run.
     pub fn line(&self, dir: &std::path::Path) -> String {
         format!(
-            "run {}: {} env steps in {:.1} s ({:.0} steps/s), {} episodes, success {:.1}%, policy v{}, terrain accuracy {} → {}",
+            "run {}: {} env steps in {:.1} s ({} steps/s), {} episodes, success {:.1}%, policy v{}, terrain accuracy {} → {}",
             self.run_id,
-            self.env_steps,
+            super::thousands(self.env_steps as f64),
             self.wall_seconds,
-            self.env_steps_per_second,
-            self.episodes,
+            super::thousands(self.env_steps_per_second),
+            super::thousands(self.episodes as f64),
             100.0 * self.success_rate,
             self.policy_version,
             self.terrain_accuracy

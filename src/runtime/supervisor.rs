@@ -1,7 +1,7 @@
 //! One process of a run under its restart policy (`[supervise]`, DESIGN §4): watched every
 //! loop of the run, started again after a backoff when its policy says so.
 
-use super::{Child, Output, Role};
+use super::{Child, Lines, Output, Role};
 use common::config::RestartPolicy;
 use indicatif::ProgressBar;
 use std::collections::VecDeque;
@@ -45,11 +45,13 @@ pub struct Supervised {
     restart_at: Option<Instant>,
     /// The current process's exit has been reported.
     seen_exit: bool,
+    /// Which of its log lines are shown.
+    lines: Lines,
 }
 
 impl Supervised {
-    pub fn start(spec: Spec, logs: &Path, bar: &ProgressBar) -> anyhow::Result<Self> {
-        let child = spawn(&spec, logs, bar)?;
+    pub fn start(spec: Spec, logs: &Path, bar: &ProgressBar, lines: Lines) -> anyhow::Result<Self> {
+        let child = spawn(&spec, logs, bar, lines)?;
         Ok(Self {
             spec,
             child,
@@ -57,6 +59,7 @@ impl Supervised {
             recent: VecDeque::new(),
             restart_at: None,
             seen_exit: false,
+            lines,
         })
     }
 
@@ -129,18 +132,18 @@ impl Supervised {
     /// one must have exited.
     pub fn replace(&mut self, logs: &Path, bar: &ProgressBar) -> anyhow::Result<()> {
         self.child.reap();
-        self.child = spawn(&self.spec, logs, bar)?;
+        self.child = spawn(&self.spec, logs, bar, self.lines)?;
         self.seen_exit = false;
         Ok(())
     }
 }
 
-fn spawn(spec: &Spec, logs: &Path, bar: &ProgressBar) -> anyhow::Result<Child> {
+fn spawn(spec: &Spec, logs: &Path, bar: &ProgressBar, lines: Lines) -> anyhow::Result<Child> {
     Child::spawn(
         spec.role.name(),
         &spec.bin,
         &spec.args,
         logs,
-        Output::Relay(bar),
+        Output::Relay(bar, lines),
     )
 }

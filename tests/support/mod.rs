@@ -37,6 +37,17 @@ impl Launched {
     /// `lavatube PREFIX… ARGS… --quiet` from the repository root (PREFIX may wrap the
     /// launcher, e.g. `ip netns exec NS`), its output in a file named after `tag`.
     pub fn command(prefix: &[&str], args: &[&str], tag: &str) -> Self {
+        Self::spawn(prefix, args, tag, &["--quiet"])
+    }
+
+    /// `lavatube run ARGS…` as a person would start it (no `--quiet`), its output in a file:
+    /// what it prints when not on a terminal.
+    #[allow(dead_code)] // each test binary compiles this module; not all use every helper
+    pub fn shown(args: &[&str], tag: &str) -> Self {
+        Self::spawn(&["run"], args, tag, &[])
+    }
+
+    fn spawn(prefix: &[&str], args: &[&str], tag: &str, extra: &[&str]) -> Self {
         let log_path = std::env::temp_dir().join(format!("lavatube-test-{tag}.log"));
         let log = std::fs::File::create(&log_path).expect("log file");
         let (program, rest): (&str, Vec<&str>) = match prefix {
@@ -54,7 +65,7 @@ impl Launched {
         let child = Command::new(program)
             .args(rest)
             .args(args)
-            .arg("--quiet")
+            .args(extra)
             .current_dir(root())
             .stdout(Stdio::from(log.try_clone().expect("log file")))
             .stderr(Stdio::from(log))

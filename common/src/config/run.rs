@@ -34,6 +34,10 @@ pub struct RunConfig {
     /// The sim also writes every env's per-tick telemetry to `<run dir>/telemetry.csv`, as
     /// `sim-proc --telemetry` does (one row per env and tick; large). Default false.
     pub telemetry_csv: bool,
+    /// The launcher prints a summary line (step, elapsed, mean return, success, entropy, KL)
+    /// each time a learner passes another multiple of this many env steps; 0 prints none.
+    /// Default 50,000 (ML-Agents' `summary_freq`).
+    pub summary_every: u64,
 }
 
 /// A policy slot of the sim's policy set (DESIGN §5): what a learner fills and an env acts with.
@@ -140,6 +144,7 @@ impl Default for RunConfig {
             init_from: None,
             frozen: std::collections::BTreeMap::default(),
             telemetry_csv: false,
+            summary_every: 50_000,
         }
     }
 }

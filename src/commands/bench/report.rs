@@ -6,6 +6,7 @@ use super::bridge::{BridgeRow, SimRates};
 use super::config::{Plan, Stage};
 use super::stages::Row;
 use super::transport::TransportRow;
+use crate::runtime::thousands;
 use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt::Write as _;
@@ -540,22 +541,6 @@ impl Report {
     }
 }
 
-/// `12345.6` → `12,346`.
-fn thousands(x: f64) -> String {
-    if !x.is_finite() {
-        return format!("{x}");
-    }
-    let digits = format!("{:.0}", x.abs());
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    if x < -0.5 { format!("-{out}") } else { out }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -614,14 +599,5 @@ mod tests {
         assert!((c.ratio - 3400.0 / 3500.0).abs() < 1e-12, "{}", c.ratio);
         assert!(c.pass);
         assert_eq!(lower_median(vec![4.0, 1.0, 3.0, 2.0]), 2.0);
-    }
-
-    #[test]
-    fn thousands_groups_digits() {
-        assert_eq!(thousands(0.4), "0");
-        assert_eq!(thousands(999.0), "999");
-        assert_eq!(thousands(4200.0), "4,200");
-        assert_eq!(thousands(1_234_567.8), "1,234,568");
-        assert_eq!(thousands(-12_000.0), "-12,000");
     }
 }

@@ -49,7 +49,7 @@ impl Pipeline {
             cfg,
             name,
             &self.run_id(name),
-            self.quiet,
+            (self.quiet, false),
             runtime::Host::Whole,
         )? {
             anyhow::bail!("interrupted during {name}; run again to resume");
