@@ -68,3 +68,58 @@ fn a_run_off_a_terminal_prints_a_few_lines_and_leaves_a_map_and_events() {
         "the launcher's events"
     );
 }
+
+#[test]
+fn a_recorded_run_leaves_an_rrd_and_survives_its_recorders_death() {
+    let run_id = format!("record-{}", std::process::id());
+    let base = std::fs::read_to_string(support::root().join("configs/smoke.toml")).expect("smoke");
+    // Long enough to kill the recorder mid-run; recorded to the run directory.
+    let text = base.replace(
+        "total-steps = 3072",
+        "total-steps = 30_720\nrecord = \"run.rrd\"",
+    );
+    let config = support::root()
+        .join("target/e2e-runs")
+        .join(format!("{run_id}.toml"));
+    std::fs::create_dir_all(config.parent().expect("dir")).expect("dir");
+    std::fs::write(&config, text).expect("config");
+    let config = config.display().to_string();
+    let launched = support::Launched::start(&config, &run_id);
+
+    let dir = support::root().join("target/e2e-runs").join(&run_id);
+    let recording = dir.join("run.rrd");
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(120);
+    let recorder = loop {
+        let node = common::ipc::list_nodes(&run_id)
+            .unwrap_or_default()
+            .into_iter()
+            .find(|n| n.alive && n.name == "recorder");
+        if let Some(n) = node
+            && recording.metadata().is_ok_and(|m| m.len() > 0)
+        {
+            break n.pid;
+        }
+        assert!(std::time::Instant::now() < deadline, "no recorder");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    };
+    // SAFETY: kill(2) on the recorder the launcher started for this test's run.
+    unsafe {
+        libc::kill(recorder as i32, libc::SIGKILL);
+    }
+    let (code, output) = launched.wait();
+    assert_eq!(code, 0, "the run goes on without its recorder:\n{output}");
+    assert!(
+        output.contains("recorder exited with signal: 9"),
+        "{output}"
+    );
+    let summary: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("summary.json")).expect("summary.json"),
+    )
+    .expect("json");
+    assert_eq!(summary["env_steps"].as_u64(), Some(30_720), "{summary}");
+    assert_eq!(
+        summary["restarts"]["recorder"].as_u64(),
+        Some(0),
+        "{summary}"
+    );
+}

@@ -32,6 +32,7 @@ pub struct Binaries {
     pub learner: PathBuf,
     pub estimator: PathBuf,
     pub bridge: PathBuf,
+    pub recorder: PathBuf,
     /// This launcher, for its hidden bench subcommands.
     pub launcher: PathBuf,
 }
@@ -43,6 +44,7 @@ impl Binaries {
             learner: locate("learner-proc")?,
             estimator: locate("estimator-proc")?,
             bridge: locate("bridge-proc")?,
+            recorder: locate("recorder-proc")?,
             launcher: std::env::current_exe().context("cannot find the launcher's executable")?,
         })
     }
@@ -53,6 +55,7 @@ impl Binaries {
             Role::Estimator => &self.estimator,
             Role::Sim => &self.sim,
             Role::Bridge => &self.bridge,
+            Role::Recorder => &self.recorder,
             Role::Reader | Role::Echo => &self.launcher,
         }
     }

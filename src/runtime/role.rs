@@ -15,6 +15,8 @@ pub enum Role {
     Sim,
     /// Carries rollout chunks and policies between the hosts of a run (DESIGN §9).
     Bridge,
+    /// Writes the run's telemetry and terrain estimates to a Rerun recording (`run.record`).
+    Recorder,
     /// `lavatube bench`'s reading process: counts every telemetry tick and rollout chunk.
     Reader,
     /// `lavatube bench`'s receiving end of the transport comparison.
@@ -29,6 +31,7 @@ impl Role {
             Self::Estimator => "estimator",
             Self::Sim => "sim",
             Self::Bridge => "bridge",
+            Self::Recorder => "recorder",
             Self::Reader => "reader",
             Self::Echo => "echo",
         }
@@ -52,6 +55,7 @@ mod tests {
             Role::Estimator,
             Role::Sim,
             Role::Bridge,
+            Role::Recorder,
             Role::Reader,
             Role::Echo,
         ];

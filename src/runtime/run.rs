@@ -9,7 +9,7 @@ use super::swap::{SwapContext, learner_args, swap_learner};
 use super::{Binaries, Event, Host, Lines, Progress, Role, Spec, Summary, Supervised, ladder, say};
 use crate::error::UserError;
 use anyhow::Context;
-use common::config::PolicySlot;
+use common::config::{PolicySlot, RestartPolicy};
 use common::ipc::{self, Bus, Receiver, SwapServer};
 use common::wire::{EnvTick, PolicyHeader, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
 use common::{Config, run_dir};
@@ -221,6 +221,12 @@ impl<'a> Run<'a> {
             spec(Role::Learner(slot), args, sup.learner)
         }));
         specs.push(spec(Role::Estimator, join(&["serve"]), sup.estimator));
+        if let Some(file) = &cfg.run.record {
+            let mut args = join(&["serve"]);
+            args.extend(["--out".into(), self.dir.join(file).display().to_string()]);
+            // Never restarted: a new recorder would start the file over.
+            specs.push(spec(Role::Recorder, args, RestartPolicy::NEVER));
+        }
         if let Some(args) = self.host.bridge_args() {
             let args: Vec<&str> = args.iter().map(String::as_str).collect();
             // The bridge restarts like a learner: its peers on the other hosts wait for it.
@@ -514,6 +520,14 @@ impl Supervision<'_, '_> {
                         bar,
                         format!(
                             "estimator exited with {status} for good; the sim keeps its last terrain estimates"
+                        ),
+                    );
+                }
+                Some(Event::Exited(status)) if role == Role::Recorder && !status.success() => {
+                    say(
+                        bar,
+                        format!(
+                            "recorder exited with {status}; the run goes on without its recording (see its log)"
                         ),
                     );
                 }

@@ -38,6 +38,10 @@ pub struct RunConfig {
     /// each time a learner passes another multiple of this many env steps; 0 prints none.
     /// Default 50,000 (ML-Agents' `summary_freq`).
     pub summary_every: u64,
+    /// Record the run for the Rerun viewer: the file (`.rrd`, relative to the run directory)
+    /// that recorder-proc writes the terrain, every robot's pose and trail and the estimator's
+    /// signals to. Its death never stops the run. Default none.
+    pub record: Option<PathBuf>,
 }
 
 /// A policy slot of the sim's policy set (DESIGN §5): what a learner fills and an env acts with.
@@ -145,6 +149,7 @@ impl Default for RunConfig {
             frozen: std::collections::BTreeMap::default(),
             telemetry_csv: false,
             summary_every: 50_000,
+            record: None,
         }
     }
 }
@@ -176,6 +181,11 @@ impl RunConfig {
         {
             return Err(invalid("run.init-from", p, "file not found"));
         }
+        if let Some(r) = &self.record
+            && r.extension().is_none_or(|e| e != "rrd")
+        {
+            return Err(invalid("run.record", r, "must name an .rrd file"));
+        }
         Ok(())
     }
 }
@@ -197,5 +207,8 @@ mod tests {
         assert!(err.to_string().contains("run.learners"), "{err}");
         let err = parse("[run]\ninit-from = \"/nonexistent.ckpt\"\n").expect_err("missing");
         assert!(err.to_string().contains("run.init-from"), "{err}");
+        let err = parse("[run]\nrecord = \"run.csv\"\n").expect_err("not .rrd");
+        assert!(err.to_string().contains("run.record"), "{err}");
+        assert!(parse("[run]\nrecord = \"run.rrd\"\n").is_ok());
     }
 }

@@ -37,6 +37,14 @@ fn default_window_s() -> u64 {
 }
 
 impl RestartPolicy {
+    /// A process that is never started again.
+    pub const NEVER: Self = Self {
+        restart: Restart::Never,
+        max_restarts: 0,
+        backoff_ms: 0,
+        window_s: 0,
+    };
+
     /// The window restarts count over; `None` counts over the whole run.
     pub fn window(&self) -> Option<std::time::Duration> {
         (self.window_s > 0).then(|| std::time::Duration::from_secs(self.window_s))
