@@ -310,7 +310,10 @@ mod tests {
                     .is_ok_and(|e| e.file_name().to_string_lossy().contains("tfevents"))
             })
             .count();
-        assert_eq!(events, 2, "an event file per learner process, beside metrics.csv");
+        assert_eq!(
+            events, 2,
+            "an event file per learner process, beside metrics.csv"
+        );
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines.len(), 3, "{text}");
         assert!(
