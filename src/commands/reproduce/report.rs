@@ -269,6 +269,20 @@ pub(super) fn report(
             md += &format!("![{stage} {}]({})\n\n", slot.name(), rel.display());
         }
     }
+    md += "\n## Maps\n\nEach robot's last episodes, its path coloured by the estimator's class: the general model's training (stage b), then switching on each evaluation ground's first courses (stage f).\n\n";
+    let maps = std::iter::once(p.stage_dir("b-general")).chain(
+        super::evaluation::EVAL_AREAS.iter().map(|a| {
+            p.stage_dir("f-eval")
+                .join(format!("switching-{}-0", a.name()))
+        }),
+    );
+    for dir in maps {
+        let png = dir.join(run_dir::MAP_PNG);
+        if png.is_file() {
+            let rel = png.strip_prefix(&p.out).unwrap_or(&png);
+            md += &format!("![map {}]({})\n\n", rel.display(), rel.display());
+        }
+    }
     Ok(md)
 }
 
