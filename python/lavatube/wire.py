@@ -91,11 +91,13 @@ class TickHeader(Wire):
 
 
 class EnvTick(Wire):
-    """One env at one tick: true area, `EVENT_*` bits, acting slot, pose, sin θx, reward."""
+    """One env at one tick: true area, `EVENT_*` bits, acting slot, pose, sin θx, reward,
+    target (x, z)."""
 
-    TYPE_NAME = "lavatube.EnvTick.v1"
+    TYPE_NAME = "lavatube.EnvTick.v2"
     _fields_ = [("env", u32), ("area", u8), ("events", u8), ("slot", u8), ("_reserved", u8),
-                ("pos", f32 * 3), ("euler", f32 * 3), ("sin_pitch", f32), ("reward", f32)]
+                ("pos", f32 * 3), ("euler", f32 * 3), ("sin_pitch", f32), ("reward", f32),
+                ("target", f32 * 2)]
 
 
 # ---- estimator → sim, monitors: `terrain` -----------------------------------------------------

@@ -1,63 +1,17 @@
-"""A real run of `configs/smoke.toml`, started with the built launcher and read while it runs.
-
-The launcher is `target/debug/lavatube` of this checkout, or the one in `$LAVATUBE_BIN_DIR`;
-without it the test is skipped. The run directory goes to pytest's tmp_path.
-"""
+"""A real run of `configs/smoke.toml` (conftest.py's `run` fixture), read while it runs."""
 
 import json
-import os
-import re
-import subprocess
-import threading
-import uuid
-from collections import namedtuple
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import numpy as np
-import pytest
 
 import lavatube
 
-ROOT = Path(__file__).resolve().parents[2]
-LAYOUTS = json.loads((ROOT / "python" / "lavatube" / "layouts.json").read_text())
-#: Seconds for the run's services to appear (debug binaries on a busy machine), and for the
-#: whole run, after which a watchdog kills the launcher (its processes follow it).
-APPEAR_S, LIMIT_S = 30, 180
-
-Run = namedtuple("Run", "id proc")
-
-
-@pytest.fixture
-def run(tmp_path):
-    """A smoke run writing under tmp_path; the launcher is stopped at the end if still up."""
-    launcher = Path(os.environ.get("LAVATUBE_BIN_DIR", ROOT / "target" / "debug")) / "lavatube"
-    if not launcher.is_file():
-        pytest.skip(f"no launcher at {launcher}: build the workspace or set LAVATUBE_BIN_DIR")
-    # `run.out-dir` is relative to the working directory: point it at tmp_path instead.
-    config, n = re.subn(r"(?m)^out-dir = .*$", f"out-dir = {json.dumps(str(tmp_path))}",
-                        (ROOT / "configs" / "smoke.toml").read_text())
-    assert n == 1, "configs/smoke.toml no longer sets run.out-dir"
-    (tmp_path / "smoke.toml").write_text(config)
-    run_id = f"py-{uuid.uuid4().hex[:12]}"
-    log = tmp_path / "launcher.log"
-    with log.open("w") as out:
-        proc = subprocess.Popen([launcher, "run", "--config", tmp_path / "smoke.toml",
-                                 "--run-id", run_id, "--quiet"],
-                                cwd=tmp_path, stdout=out, stderr=subprocess.STDOUT)
-    watchdog = threading.Timer(LIMIT_S, proc.kill)
-    watchdog.start()
-    try:
-        yield Run(run_id, proc)
-    finally:
-        watchdog.cancel()
-        proc.terminate()  # the launcher stops its processes and removes the run's memory
-        try:
-            proc.wait(timeout=30)
-        except subprocess.TimeoutExpired:
-            proc.kill()
-            proc.wait()
-        print(log.read_text())  # shown when the test fails
+LAYOUTS = json.loads(
+    (Path(__file__).resolve().parents[1] / "lavatube" / "layouts.json").read_text())
+#: Seconds for the run's services to appear (debug binaries on a busy machine).
+APPEAR_S = 30
 
 
 def test_a_live_run_reads_back_through_the_package(run):

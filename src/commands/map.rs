@@ -11,8 +11,11 @@ use std::process::ExitCode;
 #[derive(Debug, clap::Args)]
 pub struct MapArgs {
     /// The run directory (its config.toml and track.csv): draws `<RUN_DIR>/map.png`.
-    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["telemetry", "config"])]
+    #[arg(long, value_name = "RUN_DIR", conflicts_with_all = ["telemetry", "config", "run_id"])]
     pub run: Option<PathBuf>,
+    /// The run of this id under `runs/` (the default `run.out-dir`): as `--run runs/<RUN_ID>`.
+    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["telemetry", "config"])]
+    pub run_id: Option<String>,
     /// A telemetry CSV to draw instead (classes are not in telemetry: paths are grey).
     #[arg(long, requires = "config")]
     pub telemetry: Option<PathBuf>,
@@ -25,7 +28,12 @@ pub struct MapArgs {
 }
 
 pub fn map_command(args: MapArgs) -> anyhow::Result<ExitCode> {
-    let (cfg, track, out) = match (&args.run, &args.telemetry, &args.config) {
+    let run = args.run.clone().or_else(|| {
+        args.run_id
+            .as_ref()
+            .map(|id| PathBuf::from("runs").join(id))
+    });
+    let (cfg, track, out) = match (&run, &args.telemetry, &args.config) {
         (Some(dir), _, _) => {
             let cfg_path = dir.join(run_dir::CONFIG_TOML);
             let track_path = dir.join(run_dir::TRACK_CSV);
@@ -45,9 +53,10 @@ pub fn map_command(args: MapArgs) -> anyhow::Result<ExitCode> {
             (Config::load(cfg)?, track, csv.with_extension("png"))
         }
         _ => {
-            return Err(
-                UserError("give --run RUN_DIR, or --telemetry CSV with --config".into()).into(),
-            );
+            return Err(UserError(
+                "give --run RUN_DIR (or --run-id R), or --telemetry CSV with --config".into(),
+            )
+            .into());
         }
     };
     let out = args.out.unwrap_or(out);

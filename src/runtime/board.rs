@@ -31,14 +31,21 @@ impl Board {
         }
     }
 
-    /// Writes the scalars at `steps` if they are due; the error, the first time one fails.
-    pub fn write(&mut self, p: &Progress, steps: u64, rate: Option<f64>) -> Option<String> {
+    /// Writes the scalars at `steps` if they are due (always when `last`, the run's end); the
+    /// error, the first time one fails.
+    pub fn write(
+        &mut self,
+        p: &Progress,
+        steps: u64,
+        rate: Option<f64>,
+        last: bool,
+    ) -> Option<String> {
         let now = Instant::now();
-        if self.failed
+        let due = last
             || self
                 .last
-                .is_some_and(|t| now.duration_since(t) < Self::EVERY)
-        {
+                .is_none_or(|t| now.duration_since(t) >= Self::EVERY);
+        if self.failed || !due {
             return None;
         }
         self.last = Some(now);

@@ -313,6 +313,7 @@ impl<'a> Run<'a> {
             sim_finished: None,
             grace,
             rate: Rate::default(),
+            rate_now: None,
             board: Board::new(&self.dir),
             summaries: Summaries::new(
                 &self.dir,
@@ -321,13 +322,20 @@ impl<'a> Run<'a> {
             ),
         };
         let interrupted = loop_.until_done(&ports)?;
+        loop_.show_progress(&ports)?;
         let Supervision {
             mut members,
             progress,
             failed,
             swaps,
+            rate_now,
+            mut board,
             ..
         } = loop_;
+        let steps = progress.tick.env_steps.max(progress.learned_steps);
+        if let Some(e) = board.write(&progress, steps, rate_now, true) {
+            eprintln!("lavatube: {e}");
+        }
         stop_all(
             &mut members,
             &|| {
@@ -358,14 +366,15 @@ impl<'a> Run<'a> {
                 .insert(name.clone(), m.child.status().map(|s| s.to_string()));
             summary.restarts.insert(name, m.restarts);
         }
+        let path = self.dir.join(run_dir::SUMMARY_JSON);
+        std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
+            .with_context(|| format!("cannot write {}", path.display()))?;
+        // After the summary: on a full disk the summary matters more than the picture.
         if self.host.starts(Role::Sim)
             && let Err(e) = super::map::draw_run(&self.cfg.sim, &self.dir)
         {
             eprintln!("lavatube: no map: {e:#}");
         }
-        let path = self.dir.join(run_dir::SUMMARY_JSON);
-        std::fs::write(&path, serde_json::to_string_pretty(&summary)?)
-            .with_context(|| format!("cannot write {}", path.display()))?;
         println!("{}", summary.line(&self.dir));
         for (learner, n) in summary.write_failures.iter().filter(|(_, n)| **n > 0) {
             eprintln!(
@@ -404,6 +413,8 @@ struct Supervision<'r, 'a> {
     sim_finished: Option<Instant>,
     grace: Duration,
     rate: Rate,
+    /// The newest steps/s, for the launcher's last scalars.
+    rate_now: Option<f64>,
     board: Board,
     summaries: Summaries,
 }
@@ -468,8 +479,9 @@ impl Supervision<'_, '_> {
         let steps = p.tick.env_steps.max(p.learned_steps);
         bar.set_position(steps.min(self.run.cfg.run.total_steps));
         let rate = self.rate.update(Instant::now(), steps);
+        self.rate_now = rate;
         bar.set_message(console::bar_message(p, rate));
-        if let Some(e) = self.board.write(p, steps, rate) {
+        if let Some(e) = self.board.write(p, steps, rate, false) {
             say(bar, format!("lavatube: {e}"));
         }
         self.summaries.print_due(bar);
