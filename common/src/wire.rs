@@ -160,7 +160,7 @@ pub const EVENT_FAULT: u8 = 8;
 /// One env at one tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.EnvTick.v1")]
+#[type_name("lavatube.EnvTick.v2")]
 pub struct EnvTick {
     pub env: u32,
     /// True terrain under the robot (0 flat, 1 rough): the env's area, or on the mixed
@@ -178,6 +178,8 @@ pub struct EnvTick {
     /// sin θx (SPEC S7's signal).
     pub sin_pitch: f32,
     pub reward: f32,
+    /// The episode's target on the ground (x, z), metres; on an ending tick, the ended one's.
+    pub target: [f32; 2],
 }
 
 // ---- estimator → sim, monitors: `terrain` ---------------------------------------------------

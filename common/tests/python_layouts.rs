@@ -104,7 +104,8 @@ fn expected() -> Value {
             pos,
             euler,
             sin_pitch,
-            reward
+            reward,
+            target
         }),
         layout!(TerrainHeader {
             tick,

@@ -18,8 +18,7 @@ pub struct RobotSample {
     /// The episode ended on this tick (terminated, truncated or a fault): the robot starts
     /// elsewhere on the next, so its trail starts over.
     pub episode_end: bool,
-    /// The target on the ground (x, z), metres, when the source carries it (the CSV does,
-    /// the telemetry wire does not).
+    /// The target on the ground (x, z), metres, when the source carries it.
     pub target: Option<[f64; 2]>,
 }
 
@@ -33,7 +32,7 @@ impl From<&EnvTick> for RobotSample {
             sin_pitch: f64::from(t.sin_pitch),
             reward: f64::from(t.reward),
             episode_end: t.events & ends != 0,
-            target: None,
+            target: Some(t.target.map(f64::from)),
         }
     }
 }

@@ -127,7 +127,7 @@ fn synthetic_ticks_round_trip_with_their_entities_and_ticks() {
     assert_eq!(
         d.ticks.keys().cloned().collect::<BTreeSet<_>>(),
         temporal.iter().cloned().collect(),
-        "no targets: the telemetry wire has none"
+        "no targets: these samples carry none"
     );
     for e in &temporal {
         assert_eq!(d.ticks_of(e), logged, "{e}");
@@ -280,6 +280,8 @@ fn serve_records_a_run_until_its_stop_request_and_closes_the_file() {
     let d = Decoded::read(&out);
     for env in 0..envs {
         assert_eq!(d.ticks_of(&entity::robot(env)), [0, 2, 4, 6, 8]);
+        // The telemetry carries each env's target: logged once, as it never moves here.
+        assert_eq!(d.ticks_of(&entity::target(env)), [0]);
     }
     assert_eq!(d.ticks_of(entity::CLASS), [0, 2, 4]);
 }

@@ -131,6 +131,7 @@ impl Driver {
                 euler: p.euler.map(|v| v as f32),
                 sin_pitch: p.euler[0].sin() as f32,
                 reward: info.reward as f32,
+                target: info.target.map(|v| v as f32),
                 ..EnvTick::default()
             };
         }

@@ -1,9 +1,8 @@
 //! `recorder-proc convert`: the same recording from a telemetry CSV the sim wrote
 //! (`sim-proc --telemetry`, or `run.telemetry-csv` in a run), read row by row.
 //!
-//! The CSV has what the telemetry wire has plus each env's target, and nothing of the
-//! estimator: a converted recording has targets but no `window_std`, `class` or
-//! `posterior` series.
+//! The CSV has what the telemetry wire has, and nothing of the estimator: a converted
+//! recording has no `window_std`, `class` or `posterior` series.
 
 use super::{describe, load_config, print_output};
 use crate::error::Result;
