@@ -1,5 +1,6 @@
-//! Command-line pieces every binary shares: argument parsing with lavatube's exit codes, the
-//! run-id value parser, and the arguments with which the launcher starts a process.
+//! Command-line pieces every binary shares: argument parsing and errors with lavatube's exit
+//! codes, the run-id value parser, the arguments with which the launcher starts a process,
+//! and the check that every argument is documented.
 
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -19,6 +20,41 @@ pub fn parse<C: clap::Parser>(args: impl IntoIterator<Item = OsString>) -> Resul
             ExitCode::SUCCESS
         }
     })
+}
+
+/// What a process's `main` returns for `result`: success, or the error on one line and
+/// [`EXIT_USER`] when its chain holds an `E` that `is_user` calls the user's to fix (a bad
+/// config or input file), else 2 (anything unexpected).
+pub fn exit<E>(result: anyhow::Result<()>, is_user: fn(&E) -> bool) -> ExitCode
+where
+    E: std::error::Error + Send + Sync + 'static,
+{
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            let user = e
+                .chain()
+                .any(|c| c.downcast_ref::<E>().is_some_and(is_user));
+            ExitCode::from(if user { EXIT_USER } else { 2 })
+        }
+    }
+}
+
+/// clap's own consistency checks on `cmd`, then a panic naming the first argument of its
+/// subcommands without help text: each binary's command-line test.
+pub fn assert_documented(cmd: &clap::Command) {
+    cmd.clone().debug_assert();
+    for sub in cmd.get_subcommands() {
+        for arg in sub.get_arguments() {
+            let id = arg.get_id().as_str();
+            assert!(
+                id == "help" || id == "version" || arg.get_help().is_some(),
+                "{} --{id} has no help",
+                sub.get_name()
+            );
+        }
+    }
 }
 
 /// clap value parser for a run id (see [`crate::ipc::validate_run_id`]).

@@ -468,11 +468,12 @@ mod tests {
         assert_eq!(offset_of!(TickHeader, reach_ticks_sq), 56, "{MSG}");
         assert_eq!(
             (size_of::<EnvTick>(), align_of::<EnvTick>()),
-            (40, 4),
+            (48, 4),
             "{MSG}"
         );
         assert_eq!(offset_of!(EnvTick, pos), 8, "{MSG}");
         assert_eq!(offset_of!(EnvTick, sin_pitch), 32, "{MSG}");
+        assert_eq!(offset_of!(EnvTick, target), 40, "{MSG}");
     }
 
     #[test]

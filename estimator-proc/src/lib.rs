@@ -53,20 +53,5 @@ where
         Err(code) => return code,
     };
     common::logging::init();
-    match run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(exit_code(&e))
-        }
-    }
-}
-
-/// 1 when the error chain holds a user-fixable [`EstimatorError`], else 2.
-pub fn exit_code(e: &anyhow::Error) -> u8 {
-    let user = e.chain().any(|c| {
-        c.downcast_ref::<EstimatorError>()
-            .is_some_and(EstimatorError::is_user_error)
-    });
-    if user { 1 } else { 2 }
+    common::cli::exit(run(cli), EstimatorError::is_user_error)
 }

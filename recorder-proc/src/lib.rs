@@ -32,15 +32,7 @@ pub use error::{RecorderError, Result};
 pub use options::RecordOptions;
 pub use recording::{Recording, Summary};
 
-use std::path::Path;
 use std::process::ExitCode;
-
-/// Records run `run_id` into `out` until the run asks its processes to stop, with the
-/// default [`RecordOptions`]: what `recorder-proc serve` does, for callers that link the
-/// library. `cfg` is the run's config (its envs and floor).
-pub fn run(cfg: &common::Config, run_id: &str, out: &Path) -> anyhow::Result<Summary> {
-    command::serve::record(cfg, run_id, out, &RecordOptions::default())
-}
 
 /// Parses `args`, runs, prints any error on one line and maps it to the exit code:
 /// 0 ok, 1 a user, config or input error, 2 anything unexpected.
@@ -54,20 +46,5 @@ where
         Err(code) => return code,
     };
     common::logging::init();
-    match command::run(cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            ExitCode::from(exit_code(&e))
-        }
-    }
-}
-
-/// 1 when the error chain holds a user-fixable [`RecorderError`], else 2.
-pub fn exit_code(e: &anyhow::Error) -> u8 {
-    let user = e.chain().any(|c| {
-        c.downcast_ref::<RecorderError>()
-            .is_some_and(RecorderError::is_user_error)
-    });
-    if user { common::cli::EXIT_USER } else { 2 }
+    common::cli::exit(command::run(cli), RecorderError::is_user_error)
 }

@@ -63,19 +63,7 @@ mod tests {
 
     #[test]
     fn cli_is_well_formed_and_every_argument_is_documented() {
-        Cli::command().debug_assert();
-        for sub in Cli::command().get_subcommands() {
-            for arg in sub.get_arguments() {
-                let id = arg.get_id().as_str();
-                if id != "help" && id != "version" {
-                    assert!(
-                        arg.get_help().is_some(),
-                        "{} --{id} has no help",
-                        sub.get_name()
-                    );
-                }
-            }
-        }
+        common::cli::assert_documented(&Cli::command());
     }
 
     #[test]
