@@ -92,12 +92,6 @@ where
         Err(code) => return code,
     };
     common::logging::init();
-    match cli::run(&cli) {
-        Ok(()) => ExitCode::SUCCESS,
-        Err(e) => {
-            eprintln!("error: {e:#}");
-            let user = e.downcast_ref::<common::config::ConfigError>().is_some();
-            ExitCode::from(if user { common::cli::EXIT_USER } else { 2 })
-        }
-    }
+    // A bad config is the user's to fix; anything else is unexpected.
+    common::cli::exit(cli::run(&cli), |_: &common::config::ConfigError| true)
 }

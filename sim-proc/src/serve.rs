@@ -246,15 +246,15 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
                     csv.write(&telemetry_row(env, info))?;
                 }
             }
-            if let Some(t) = track.as_mut() {
-                t.see(&fleet.envs, &driver.infos, &classes);
-            }
             if let Some(est) = terrain_rx.latest()? {
                 for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
                     classes[e.env as usize] = e.class;
                 }
             }
             driver.env_ticks(&fleet, &mut ticks);
+            if let Some(t) = track.as_mut() {
+                t.see(&fleet.envs, &ticks, &classes);
+            }
             env_steps += n as u64;
             let header = TickHeader {
                 tick,

@@ -2,9 +2,9 @@
 //! with the estimator's class, its targets and endings, written at each rollout chunk. A
 //! write that fails (a full disk) stops the track with one warning; the sim goes on.
 
-use crate::env::{Env, StepInfo};
-use crate::task::Ending;
+use crate::env::Env;
 use common::track::{STRIDE, Seen, TrackPoint, TrackWriter, Tracker};
+use common::wire::{self, EnvTick};
 use std::path::Path;
 
 pub struct SimTrack {
@@ -25,23 +25,24 @@ impl SimTrack {
         })
     }
 
-    /// Takes one tick of every env: `infos` from the step, `classes` the estimator's.
-    pub fn see(&mut self, envs: &[Env], infos: &[StepInfo], classes: &[u8]) {
+    /// Takes one tick of every env from the telemetry it was published as (`ticks`) and the
+    /// estimator's `classes`.
+    pub fn see(&mut self, envs: &[Env], ticks: &[EnvTick], classes: &[u8]) {
         if self.writer.is_none() {
             return;
         }
-        for ((env, info), &class) in envs.iter().zip(infos).zip(classes) {
-            let p = env.pose().pos;
-            let ended = info.ending.is_some();
+        let ends = wire::EVENT_TERMINATED | wire::EVENT_TRUNCATED;
+        for ((env, t), &class) in envs.iter().zip(ticks).zip(classes) {
+            let ended = t.events & ends != 0;
             self.tracker.see(
                 &Seen {
                     env: env.id,
                     tick: env.tick - 1,
                     episode: env.episode_index - u64::from(ended),
-                    pos: [p[0] as f32, p[2] as f32],
-                    target: [info.target[0] as f32, info.target[1] as f32],
+                    pos: [t.pos[0], t.pos[2]],
+                    target: t.target,
                     class,
-                    ended: ended.then_some(info.ending == Some(Ending::Success)),
+                    ended: ended.then_some(t.events & wire::EVENT_SUCCESS != 0),
                 },
                 &mut self.points,
             );
