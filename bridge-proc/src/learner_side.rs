@@ -201,6 +201,8 @@ fn receive_rollouts(
     let sims = link::watch_tokens(net, link::SIM_ALL, 16)?;
     let mut hosts: BTreeMap<u32, Host> = BTreeMap::new();
     let mut refused = Refusals::new("rollout frame");
+    // One chunk's elements, decoded into the same memory every time.
+    let mut items: Vec<Transition> = Vec::with_capacity(max_len);
     let (mut logged, mut published) = (Instant::now(), Instant::now());
     while !stop.is_set() && !bus.stop_requested(&control) {
         hosts_tx.update_connections()?;
@@ -231,7 +233,7 @@ fn receive_rollouts(
             continue;
         };
         let bytes = sample.payload().to_bytes();
-        let f = match frame::decode::<RolloutHeader, Transition>(key, Kind::Rollout, &bytes) {
+        let f = match frame::decode::<RolloutHeader, _>(key, Kind::Rollout, &bytes, &mut items) {
             Ok(f) => f,
             Err(r) => {
                 refused.refuse(r.kind, &r.detail);
@@ -248,10 +250,10 @@ fn receive_rollouts(
         // DESIGN §2: what a sim host sends is checked as a local chunk would be.
         let refusal = if f.header.source != f.source {
             Some("source mismatch")
-        } else if f.items.len() > max_len {
+        } else if items.len() > max_len {
             Some("larger than the run's chunks")
         } else {
-            rollout::chunk_refusal(&f.header, &f.items)
+            rollout::chunk_refusal(&f.header, &items)
         };
         if let Some(kind) = refusal {
             refused.refuse(
@@ -263,7 +265,7 @@ fn receive_rollouts(
         host.received.add(bytes.len());
         host.last_chunk = f.header.chunk;
         host.env_steps = f.header.env_steps;
-        tx.send(f.header, &f.items)?;
+        tx.send(f.header, &items)?;
     }
     for (source, h) in &hosts {
         tracing::info!(

@@ -3,7 +3,7 @@
 //! meets on iceoryx2's shared memory; the bridge is one more process of the host's run,
 //! reading and writing the same services as a local sim or learner would.
 //!
-//! - [`frame`]: a message as bytes: type names and sizes, source, sequence number, HMAC.
+//! - [`frame`]: a message as bytes: type names and sizes, source, sequence number, MAC.
 //! - [`link`]: the Zenoh connections and key expressions.
 //! - [`sim_side`]: on a sim host, chunks out, policies in.
 //! - [`learner_side`]: on the learner host, chunks in, policies out.

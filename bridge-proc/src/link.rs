@@ -78,6 +78,10 @@ fn config(mode: &str, listen: &[&str], connect: &[&str]) -> anyhow::Result<Confi
         ("connect/endpoints", list(connect)),
         ("scouting/multicast/enabled", "false".into()),
         ("scouting/gossip/enabled", "false".into()),
+        // Return from opening at once: a peer connecting to a router otherwise waits out the
+        // scouting delay (half a second). The bridges learn that the other side is there
+        // from its liveliness token, not from the open returning.
+        ("open/return_conditions/connect_scouted", "false".into()),
         // Retry the learner host quickly: a sim host that (re)joins should have the newest
         // policy within a second of the learner host being reachable.
         (

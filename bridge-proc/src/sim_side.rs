@@ -105,6 +105,8 @@ struct Republisher {
     last: BTreeMap<PolicySlot, (u32, u32)>,
     refused: Refusals,
     received: Counts,
+    /// The weights of the frame being checked.
+    items: Vec<f32>,
 }
 
 impl Republisher {
@@ -119,6 +121,7 @@ impl Republisher {
             last: BTreeMap::new(),
             refused: Refusals::new("policy frame"),
             received: Counts::default(),
+            items: Vec::with_capacity(len),
         })
     }
 
@@ -130,7 +133,8 @@ impl Republisher {
     /// Checks one frame and republishes its policy.
     fn take(&mut self, key: &Key, bytes: &[u8]) -> anyhow::Result<()> {
         self.received.add(bytes.len());
-        let f = match frame::decode::<PolicyHeader, f32>(key, Kind::Policy, bytes) {
+        let f = match frame::decode::<PolicyHeader, f32>(key, Kind::Policy, bytes, &mut self.items)
+        {
             Ok(f) => f,
             Err(r) => {
                 self.refused.refuse(r.kind, &r.detail);
@@ -146,7 +150,7 @@ impl Republisher {
                 .refuse("unknown slot", &format!("slot {}", f.source));
             return Ok(());
         };
-        if let Some(kind) = f.header.refusal(slot, &f.items) {
+        if let Some(kind) = f.header.refusal(slot, &self.items) {
             self.refused
                 .refuse(kind, &format!("version {}", f.header.version));
             return Ok(());
@@ -155,7 +159,7 @@ impl Republisher {
         if self.last.get(&slot) == Some(&id) {
             return Ok(());
         }
-        tx.send(f.header, &f.items)?;
+        tx.send(f.header, &self.items)?;
         if !self.last.contains_key(&slot) {
             tracing::info!(
                 slot = slot.name(),
@@ -181,7 +185,9 @@ fn receive_policies(
     let policies = link::subscribe(net, link::POLICY_ALL, 16)?;
     let learner_host = link::watch_tokens(net, link::LEARNER_TOKEN, 8)?;
     let every = Duration::from_millis(cfg.net.policy_query_ms);
-    let mut next_query = Instant::now();
+    // Ask as soon as the learner host's token shows it reachable; a query sent before the
+    // connection is up would wait out its timeout. Without the token, ask every `every`.
+    let mut next_query = Instant::now() + every;
     while !stop.is_set() && !bus.stop_requested(&control) {
         for tx in local.senders.values() {
             tx.update_connections()?;

@@ -6,7 +6,7 @@ use super::range::{count_in, invalid};
 use serde::{Deserialize, Serialize};
 use std::path::{Path, PathBuf};
 
-/// The shortest shared key accepted, bytes: an HMAC-SHA256 key below its hash size is weak.
+/// The shortest shared secret accepted, bytes: below the MAC's 256-bit key it is weaker than the MAC.
 pub const MIN_KEY_BYTES: usize = 32;
 
 /// How the hosts of a run talk to each other.
@@ -14,7 +14,7 @@ pub const MIN_KEY_BYTES: usize = 32;
 #[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
 pub struct NetConfig {
     /// File with the run's shared secret (at least 32 bytes; every host needs the same one);
-    /// each frame between hosts carries an HMAC-SHA256 made with it. Required across hosts.
+    /// each frame between hosts carries a MAC (keyed BLAKE3) made with it. Required across hosts.
     pub key_file: Option<PathBuf>,
     /// How often a sim host asks for the newest policies until it has them, milliseconds. 50 ..= 60000.
     pub policy_query_ms: u64,

@@ -53,7 +53,7 @@ pub fn measure(
     bench_id: &str,
     weights: &[f32],
     messages: usize,
-) -> anyhow::Result<Vec<BridgeRow>> {
+) -> anyhow::Result<Bridged> {
     let dir = dir.join("bridge");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut cfg = cfg.clone();
@@ -87,19 +87,32 @@ pub fn measure(
         v.extend_from_slice(extra);
         v
     };
-    let mut bridges = Vec::new();
-    for (run, args) in [
-        (
+    let spawn = |run: &str, args: &[String]| -> anyhow::Result<Child> {
+        let log_dir = dir.join(run);
+        std::fs::create_dir_all(&log_dir)?;
+        Child::spawn(
+            Role::Bridge.name(),
+            &bins.bridge,
+            args,
+            &log_dir,
+            Output::File,
+        )
+    };
+    // The learner host first, with a policy to give: the sim host then joins a run under way.
+    ports.policy_tx.send(first_policy(&cfg, weights), weights)?;
+    let mut bridges = vec![spawn(
+        &learner_run,
+        &join(
+            "learner",
             &learner_run,
-            join(
-                "learner",
-                &learner_run,
-                &["--listen".into(), endpoint.clone()],
-            ),
+            &["--listen".into(), endpoint.clone()],
         ),
-        (
+    )?];
+    let measured = listening(&mut bridges[0]).and_then(|()| {
+        let joined = Instant::now();
+        bridges.push(spawn(
             &sim_run,
-            join(
+            &join(
                 "sim",
                 &sim_run,
                 &[
@@ -109,19 +122,9 @@ pub fn measure(
                     "1".into(),
                 ],
             ),
-        ),
-    ] {
-        let log_dir = dir.join(run);
-        std::fs::create_dir_all(&log_dir)?;
-        bridges.push(Child::spawn(
-            Role::Bridge.name(),
-            &bins.bridge,
-            &args,
-            &log_dir,
-            Output::File,
         )?);
-    }
-    let measured = run(&ports, &cfg, weights, messages, &mut bridges);
+        run(&ports, &cfg, weights, messages, (&mut bridges, joined))
+    });
     for bus in [&learner_bus, &sim_bus] {
         ipc::request_shutdown(&bus.control_notifier()?)?;
     }
@@ -140,13 +143,48 @@ pub fn measure(
     measured
 }
 
+/// The learner host's first policy, version 0 of the general slot.
+fn first_policy(cfg: &Config, weights: &[f32]) -> PolicyHeader {
+    let layout = common::PolicyLayout::new(common::OBS_DIM, &cfg.ppo.hidden, common::ACT_DIM);
+    debug_assert_eq!(layout.len(), weights.len());
+    PolicyHeader::new(
+        &layout,
+        0,
+        PolicySlot::General.index() as u32,
+        cfg.ppo.obs_clip as f32,
+    )
+}
+
+/// Waits for the learner-host bridge's Zenoh router to listen (its log says so).
+fn listening(bridge: &mut Child) -> anyhow::Result<()> {
+    let since = Instant::now();
+    loop {
+        let log = std::fs::read_to_string(bridge.log()).unwrap_or_default();
+        if log.contains("learner host bridge listening") {
+            return Ok(());
+        }
+        check(std::slice::from_mut(bridge), since)?;
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
+
+/// What the bridge pair measured.
+#[derive(Debug, Clone, Serialize)]
+pub struct Bridged {
+    /// Rollout chunks, then policies.
+    pub rows: Vec<BridgeRow>,
+    /// From starting a sim host's bridge (the learner host already up, with a policy) to
+    /// that policy in the sim host's shared memory: process start, connection, query, reply.
+    pub join_to_policy_ms: f64,
+}
+
 fn run(
     ports: &Ports,
     cfg: &Config,
     weights: &[f32],
     messages: usize,
-    bridges: &mut [Child],
-) -> anyhow::Result<Vec<BridgeRow>> {
+    (bridges, joined): (&mut [Child], Instant),
+) -> anyhow::Result<Bridged> {
     let n = cfg.sim.num_envs();
     let t = cfg.ppo.rollout_steps(n);
     let chunk: Vec<Transition> = (0..t * n + n)
@@ -155,13 +193,7 @@ fn run(
             ..Transition::default()
         })
         .collect();
-    let layout = cfg.ppo.hidden.clone();
-    let policy = PolicyHeader::new(
-        &common::PolicyLayout::new(common::OBS_DIM, &layout, common::ACT_DIM),
-        0,
-        PolicySlot::General.index() as u32,
-        cfg.ppo.obs_clip as f32,
-    );
+    let policy = first_policy(cfg, weights);
     // env_steps stays 0: a chunk completing run.total-steps would end the sim-host bridge.
     let header = |i: usize| RolloutHeader {
         chunk: i as u64,
@@ -177,15 +209,13 @@ fn run(
         h.version = i as u32;
         ports.policy_tx.send(h, weights)
     };
-    // The sim-host bridge asks for the newest policy once it is connected: the first
-    // arrival says both bridges are up.
-    send_policy(0)?;
-    let started = Instant::now();
+    // The sim-host bridge asks for the newest policy once it is connected.
     while ports.policy_rx.latest()?.is_none() {
-        check(bridges, started)?;
+        check(bridges, joined)?;
         ports.policy_tx.update_connections()?;
-        ports.policy_rx.wait(Duration::from_millis(20))?;
+        ports.policy_rx.wait(Duration::from_millis(1))?;
     }
+    let join_to_policy_ms = joined.elapsed().as_secs_f64() * 1e3;
     // A chunk sent before the sim-host bridge subscribed is gone (the service keeps no
     // history): send until one arrives, then drain any late copies.
     let started = Instant::now();
@@ -220,7 +250,10 @@ fn run(
         &|d| Ok(ports.policy_rx.wait(d)?),
         bridges,
     )?;
-    Ok(vec![chunk_row, policy_row])
+    Ok(Bridged {
+        rows: vec![chunk_row, policy_row],
+        join_to_policy_ms,
+    })
 }
 
 /// Fails when a bridge died or nothing arrived for [`TIMEOUT`].

@@ -114,7 +114,7 @@ pub fn bench(args: BenchArgs) -> anyhow::Result<ExitCode> {
         policy: &policy,
     };
     let mut rows = Vec::new();
-    type Bridged = (Vec<bridge::BridgeRow>, bridge::SimRates);
+    type Bridged = (bridge::Bridged, bridge::SimRates);
     let outcome = (|| -> anyhow::Result<(Vec<transport::TransportRow>, Bridged)> {
         for m in &measurements {
             bar.set_message(format!(

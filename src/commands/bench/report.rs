@@ -2,7 +2,7 @@
 //! the transport table (iceoryx2 versus the socket), the acceptance checks, and
 //! the same as JSON with the units in the key names and spelled out in `units`.
 
-use super::bridge::{BridgeRow, SimRates};
+use super::bridge::{Bridged, SimRates};
 use super::config::{Plan, Stage};
 use super::stages::Row;
 use super::transport::TransportRow;
@@ -261,7 +261,7 @@ pub struct Report {
     pub transport: Vec<TransportRow>,
     /// Rollout chunks and policies through a pair of `bridge-proc`s on loopback (DESIGN §9),
     /// and one sim's env steps/s behind the bridge against on one host.
-    pub bridge: Vec<BridgeRow>,
+    pub bridge: Bridged,
     pub bridge_sim: SimRates,
     pub acceptance: Acceptance,
 }
@@ -307,7 +307,7 @@ impl Report {
         policy_params: usize,
         runs: Vec<Row>,
         transport: Vec<TransportRow>,
-        (bridge, bridge_sim): (Vec<BridgeRow>, SimRates),
+        (bridge, bridge_sim): (Bridged, SimRates),
     ) -> Self {
         let stages = stage_cells(&runs);
         Self {
@@ -424,13 +424,13 @@ impl Report {
         if !self.stages.is_empty() {
             self.stage_tables(&mut t);
         }
-        if !self.bridge.is_empty() {
+        if !self.bridge.rows.is_empty() {
             let _ = writeln!(
                 t,
                 "\n{:<26} {:>8} {:>22} {:>10} {:>8}",
                 "through the Zenoh bridge", "bytes", "latency p50 / p99", "msg/s", "MB/s"
             );
-            for b in &self.bridge {
+            for b in &self.bridge.rows {
                 let us = |x: Option<f64>| x.map_or("?".into(), |x| format!("{x:.0}"));
                 let _ = writeln!(
                     t,
@@ -442,6 +442,11 @@ impl Report {
                     b.mb_per_s
                 );
             }
+            let _ = writeln!(
+                t,
+                "a sim host joining a run under way has its policy {:.0} ms after its bridge starts",
+                self.bridge.join_to_policy_ms
+            );
             let s = &self.bridge_sim;
             let _ = writeln!(
                 t,
