@@ -313,6 +313,7 @@ pub fn build_world(
     let mut world = PhysicsWorld::new();
     world.integration_parameters.dt = cfg.physics_dt as f32;
     world.integration_parameters.length_unit = cfg.robot.length_unit as f32;
+    world.integration_parameters.num_solver_iterations = cfg.robot.solver_iterations;
     let c = terrain.centre;
     world.insert_collider(
         ColliderBuilder::new(terrain.shape.clone())
@@ -456,6 +457,25 @@ mod tests {
         let mut goto = GoToController::new(cfg.robot.action_limit);
         let chained = legs(&cfg, 3, |env| goto.act(0, &env.observe()));
         assert_ne!(chained[1], legs(&cfg, 3, |_| [limit, limit])[1]);
+    }
+
+    #[test]
+    fn fewer_solver_iterations_reach_the_world_and_still_drive_on_rough_ground() {
+        let mut cfg = SimConfig {
+            flat_envs: 0,
+            rough_envs: 1,
+            ..SimConfig::default()
+        };
+        cfg.robot.solver_iterations = 2;
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut env = Env::new(0, &cfg, &terrain, 3);
+        assert_eq!(env.world.integration_parameters.num_solver_iterations, 2);
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        let successes = (0..1500)
+            .filter(|_| env.step(goto.act(0, &env.observe())).ending == Some(Ending::Success))
+            .count();
+        assert!(successes >= 10, "{successes} successes");
+        assert_eq!(env.faults, 0);
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! `[sim.robot]`: the two-wheeled differential robot's body, wheels and motors.
 
 use super::ConfigError;
-use super::range::{in_range, invalid};
+use super::range::{count_in, in_range, invalid};
 use serde::{Deserialize, Serialize};
 
 /// Wheel collider shape: balls are 2–3× cheaper to collide with a heightfield (DESIGN §10).
@@ -45,6 +45,8 @@ pub struct RobotConfig {
     pub action_limit: f64,
     /// rapier's length unit, metres (a robot this small halves its step cost at ≈ 0.2). [0.01, 10]. Default 0.2.
     pub length_unit: f64,
+    /// rapier's solver iterations per physics step (each a velocity pass and a stabilisation pass). 1 ..= 16. Default 4 (rapier's).
+    pub solver_iterations: usize,
 }
 
 impl Default for RobotConfig {
@@ -64,6 +66,7 @@ impl Default for RobotConfig {
             motor_damping: 1000.0,
             action_limit: 3.0,
             length_unit: 0.2,
+            solver_iterations: 4,
         }
     }
 }
@@ -90,6 +93,7 @@ impl RobotConfig {
         in_range("sim.robot.motor-damping", self.motor_damping, 1e-6, 1e6)?;
         in_range("sim.robot.action-limit", self.action_limit, 1e-6, 100.0)?;
         in_range("sim.robot.length-unit", self.length_unit, 0.01, 10.0)?;
+        count_in("sim.robot.solver-iterations", self.solver_iterations, 1, 16)?;
         if self.caster_radius >= self.wheel_radius {
             return Err(invalid(
                 "sim.robot.caster-radius",
