@@ -1,10 +1,11 @@
 //! One environment: a rapier world holding the shared terrain and one robot, the paper's
 //! episode bookkeeping, and the observation (SPEC S3–S5).
 
+use crate::attitude::Sensing;
 use crate::robot::{self, Robot, TERRAIN_GROUP};
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
-use common::config::{AreaKind, EpisodeStart, Rect, SimConfig};
+use common::config::{AreaKind, EpisodeStart, ObservationSource, Rect, SimConfig};
 use common::{OBS_DIM, Rng};
 use glam::{EulerRot, Quat, Vec3};
 use rapier3d::prelude::*;
@@ -94,6 +95,8 @@ pub struct Env {
     course_seed: u64,
     faults: u64,
     action: [f32; 2],
+    /// The IMU and its filter, with `sim.observation = "imu"`.
+    sensing: Option<Sensing>,
 }
 
 impl Env {
@@ -122,7 +125,10 @@ impl Env {
             course_seed: Rng::derive(seed, COURSE_STREAMS + id as u64).next_u64(),
             faults: 0,
             action: [0.0; 2],
+            sensing: (cfg.observation == ObservationSource::Imu)
+                .then(|| Sensing::new(&cfg.imu, seed, id)),
         };
+        env.placed();
         env.new_episode();
         env
     }
@@ -137,6 +143,7 @@ impl Env {
             let yaw = leg.range(-std::f64::consts::PI, std::f64::consts::PI);
             (self.world, self.robot) =
                 build_world(&self.cfg, &self.terrain, self.episode.target, yaw);
+            self.placed();
         }
         let start = self.pose().ground();
         let rng = leg.as_mut().unwrap_or(&mut self.rng);
@@ -184,7 +191,25 @@ impl Env {
         self.action
     }
 
+    /// Restarts the attitude filter on a robot just (re)placed in a new world.
+    fn placed(&mut self) {
+        if let Some(s) = self.sensing.as_mut() {
+            s.place(&self.world.bodies[self.robot.chassis]);
+        }
+    }
+
+    /// The attitude the observation reports, (θx, θy, θz): the pose's, or with
+    /// `sim.observation = "imu"` the IMU filter's.
+    pub fn observed_euler(&self) -> [f64; 3] {
+        match &self.sensing {
+            Some(s) => unity_euler(s.attitude().as_quat()),
+            None => self.pose().euler,
+        }
+    }
+
     /// SPEC S5: target in the robot frame (3), its X-Z norm (1), cos/sin of θx, θy, θz (6).
+    /// The target terms always use the true pose (localisation is out of scope); the
+    /// attitude terms come from [`Env::observed_euler`].
     pub fn observe(&self) -> [f32; OBS_DIM] {
         let p = self.pose();
         let [tx, tz] = self.episode.target;
@@ -195,7 +220,7 @@ impl Env {
             (tz - p.pos[2]) as f32,
         );
         let local = p.rot.inverse() * world_rel;
-        let [ex, ey, ez] = p.euler;
+        let [ex, ey, ez] = self.observed_euler();
         [
             local.x,
             local.y,
@@ -215,13 +240,16 @@ impl Env {
     /// (the multibody wheels the robot first had did panic so); either way only this env's
     /// world is lost, and the caller respawns it.
     fn physics_substeps(&mut self) -> bool {
-        let world = &mut self.world;
-        let substeps = self.cfg.substeps;
+        let (world, sensing) = (&mut self.world, &mut self.sensing);
+        let (substeps, dt, chassis) = (self.cfg.substeps, self.cfg.physics_dt, self.robot.chassis);
         let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             for _ in 0..substeps {
                 world.step();
                 if !world.quarantine().is_empty() {
                     return false;
+                }
+                if let Some(s) = sensing.as_mut() {
+                    s.sense(&world.bodies[chassis], world.gravity, dt);
                 }
             }
             true
@@ -275,6 +303,7 @@ impl Env {
             if ending.respawns() && self.cfg.task.episodes == EpisodeStart::Chained {
                 let (world, robot) = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
                 (self.world, self.robot) = (world, robot);
+                self.placed();
             }
             self.episode_index += 1;
             self.new_episode();
@@ -476,6 +505,34 @@ mod tests {
             .count();
         assert!(successes >= 10, "{successes} successes");
         assert_eq!(env.faults, 0);
+    }
+
+    #[test]
+    fn the_imu_filter_tracks_the_true_pitch_while_driving_on_rough_ground() {
+        let mut cfg = SimConfig {
+            flat_envs: 0,
+            rough_envs: 1,
+            ..SimConfig::default()
+        };
+        cfg.observation = ObservationSource::Imu;
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let mut env = Env::new(0, &cfg, &terrain, 11);
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        let (mut sq, mut n, mut spread) = (0.0, 0, 0.0f64);
+        for _ in 0..1500 {
+            env.step(goto.act(0, &env.observe()));
+            let (truth, seen) = (env.pose().euler[0], env.observed_euler()[0]);
+            sq += (seen - truth).powi(2);
+            spread = spread.max(truth.abs());
+            n += 1;
+        }
+        let rms = (sq / f64::from(n)).sqrt().to_degrees();
+        assert!(rms < 1.0, "RMS pitch error {rms:.3}°");
+        assert!(spread.to_degrees() > 2.0, "the ground pitched the robot");
+        // The truth path is untouched: without the IMU the observation is the pose's.
+        cfg.observation = ObservationSource::Truth;
+        let env = Env::new(0, &cfg, &terrain, 11);
+        assert_eq!(env.observed_euler(), env.pose().euler);
     }
 
     #[test]

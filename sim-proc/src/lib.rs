@@ -6,11 +6,13 @@
 //! a non-finite physics state ends that env's episode (truncated) and respawns it, it never
 //! stops the process.
 
+pub mod attitude;
 pub mod cli;
 pub mod controllers;
 pub mod driver;
 pub mod env;
 pub mod fleet;
+pub mod imu;
 mod pool;
 pub mod robot;
 pub mod serve;

@@ -6,6 +6,7 @@
 //! section is a module holding its fields and their checks.
 
 mod estimator;
+mod imu;
 mod model_file;
 mod net;
 mod ppo;
@@ -21,6 +22,7 @@ mod terrain;
 mod tests;
 
 pub use estimator::{EstimatorConfig, MixtureFeature};
+pub use imu::{Accel, FilterConfig, Gyro, ImuConfig, ObservationSource, SensorErrors};
 pub use model_file::OfflineMixture;
 pub use net::{MIN_KEY_BYTES, NetConfig};
 pub use ppo::{PpoConfig, PpoEngine};

@@ -2,7 +2,9 @@
 //! own sections.
 
 use super::range::{count_in, in_range, invalid};
-use super::{Acting, ConfigError, RobotConfig, TaskConfig, TerrainConfig};
+use super::{
+    Acting, ConfigError, ImuConfig, ObservationSource, RobotConfig, TaskConfig, TerrainConfig,
+};
 use serde::{Deserialize, Serialize};
 
 /// Which area an env lives in: SPEC S1's two training areas, or the mixed course (our
@@ -88,6 +90,9 @@ pub struct SimConfig {
     pub substeps: usize,
     pub terrain: TerrainConfig,
     pub robot: RobotConfig,
+    /// Where the observation's attitude terms come from: `truth` (the paper's) or `imu`. Default truth.
+    pub observation: ObservationSource,
+    pub imu: ImuConfig,
     pub task: TaskConfig,
 }
 
@@ -106,6 +111,8 @@ impl Default for SimConfig {
             substeps: 5,
             terrain: TerrainConfig::default(),
             robot: RobotConfig::default(),
+            observation: ObservationSource::Truth,
+            imu: ImuConfig::default(),
             task: TaskConfig::default(),
         }
     }
@@ -176,6 +183,7 @@ impl SimConfig {
         count_in("sim.substeps", self.substeps, 1, 100)?;
         self.terrain.validate()?;
         self.robot.validate()?;
+        self.imu.validate()?;
         self.task.validate()?;
         Ok(())
     }

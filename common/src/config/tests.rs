@@ -84,3 +84,26 @@ fn heightmap_path_survives_being_rewritten_elsewhere() {
     assert_eq!(Config::load(&resolved).expect("still found"), cfg);
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_partial_imu_table_keeps_each_sensors_own_defaults() {
+    let c = parse(
+        "[sim]\nobservation = \"imu\"\n[sim.imu.accel]\nbits = 12\n[sim.imu.filter]\nkp = 2.0\n",
+    )
+    .expect("partial tables");
+    assert_eq!(c.sim.observation, ObservationSource::Imu);
+    assert_eq!(c.sim.imu.accel.bits, 12);
+    // The accelerometer's other fields and the gyroscope keep their own defaults.
+    assert_eq!(
+        c.sim.imu.accel.range,
+        SensorErrors::<Accel>::default().range
+    );
+    assert_eq!(c.sim.imu.gyro, SensorErrors::<Gyro>::default());
+    assert_eq!((c.sim.imu.filter.kp, c.sim.imu.filter.ki), (2.0, 0.05));
+    let e = parse("[sim.imu.filter]\ngate = 0.0\n").expect_err("range");
+    assert!(e.to_string().contains("sim.imu.filter.gate"), "{e}");
+    let e = parse("[sim.imu.gyro]\nbits = 40\n").expect_err("range");
+    assert!(e.to_string().contains("sim.imu.gyro.bits"), "{e}");
+    let e = parse("[sim]\nobservation = \"gps\"\n").expect_err("unknown source");
+    assert!(e.to_string().contains("unknown variant `gps`"), "{e}");
+}

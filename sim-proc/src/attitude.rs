@@ -1,0 +1,225 @@
+//! The robot's attitude from its IMU: a Mahony explicit complementary filter (R. Mahony,
+//! T. Hamel, J.-M. Pflimlin, "Nonlinear Complementary Filters on the Special Orthogonal
+//! Group", IEEE Trans. Automatic Control 53(5), 2008, eq. 32). The gyroscope is integrated;
+//! the accelerometer's direction, taken as gravity's, pulls the estimated up axis toward it
+//! with gain `kp`, and an integral with gain `ki` learns the gyroscope's bias. While the
+//! specific force's magnitude is far from g (a bump, a landing) the accelerometer is ignored.
+//! Yaw is unobservable from gravity: it is the integrated gyroscope alone, from the heading
+//! the filter was started with.
+
+use crate::imu::{Imu, ImuSample};
+use common::Rng;
+use common::config::{FilterConfig, ImuConfig};
+use glam::{DQuat, DVec3};
+use rapier3d::prelude::{RigidBody, Vector};
+
+/// Standard gravity, m/s²: the magnitude the accelerometer gate compares against.
+const G: f64 = 9.81;
+
+/// One robot's attitude estimate.
+#[derive(Debug, Clone)]
+pub struct Mahony {
+    cfg: FilterConfig,
+    /// Body to world.
+    q: DQuat,
+    /// The gyroscope bias learned by the integral term, rad/s.
+    bias: DVec3,
+}
+
+impl Mahony {
+    /// A filter started at attitude `q` with no bias learned.
+    pub fn new(cfg: &FilterConfig, q: DQuat) -> Self {
+        Self {
+            cfg: cfg.clone(),
+            q: q.normalize(),
+            bias: DVec3::ZERO,
+        }
+    }
+
+    /// The estimated attitude, body to world.
+    pub fn attitude(&self) -> DQuat {
+        self.q
+    }
+
+    /// The gyroscope bias the integral has learned, rad/s.
+    pub fn bias(&self) -> DVec3 {
+        self.bias
+    }
+
+    /// Advances the estimate by one reading taken `dt` seconds after the last.
+    pub fn update(&mut self, s: &ImuSample, dt: f64) {
+        let norm = s.accel.length();
+        let mut correction = DVec3::ZERO;
+        if norm > 0.0 && (norm - G).abs() <= self.cfg.gate * G {
+            // Error between the measured up direction and the estimated one, both in the
+            // body frame: their cross product turns the estimate toward the measurement.
+            let measured = s.accel / norm;
+            let estimated = self.q.inverse() * DVec3::Y;
+            let error = measured.cross(estimated);
+            self.bias -= self.cfg.ki * error * dt;
+            correction = self.cfg.kp * error;
+        }
+        let omega = s.gyro - self.bias + correction;
+        let angle = omega.length() * dt;
+        if angle > 0.0 {
+            self.q = (self.q * DQuat::from_axis_angle(omega / omega.length(), angle)).normalize();
+        }
+    }
+}
+
+/// A robot's IMU and the filter reading it, sampled after every physics step.
+#[derive(Debug, Clone)]
+pub struct Sensing {
+    imu: Imu,
+    filter: Mahony,
+    /// The chassis's linear velocity at the last sample, m/s, for its acceleration.
+    last_velocity: DVec3,
+}
+
+impl Sensing {
+    /// The IMU of env `id` (its errors drawn from its own stream of the run `seed`).
+    pub fn new(cfg: &ImuConfig, seed: u64, id: usize) -> Self {
+        Self {
+            imu: Imu::new(cfg, Rng::derive(seed, IMU_STREAMS + id as u64)),
+            filter: Mahony::new(&cfg.filter, DQuat::IDENTITY),
+            last_velocity: DVec3::ZERO,
+        }
+    }
+
+    /// Restarts the filter on a robot just placed at `body`'s pose, at rest: a robot set
+    /// down knows its heading and that it stands still. The sensor keeps its biases.
+    pub fn place(&mut self, body: &RigidBody) {
+        self.filter = Mahony::new(&self.filter.cfg, body.rotation().as_dquat());
+        self.last_velocity = body.linvel().as_dvec3();
+    }
+
+    /// Samples the IMU on `body` `dt` seconds after the last sample and updates the filter.
+    pub fn sense(&mut self, body: &RigidBody, gravity: Vector, dt: f64) {
+        let velocity = body.linvel().as_dvec3();
+        let accel = (velocity - self.last_velocity) / dt;
+        self.last_velocity = velocity;
+        let s = self.imu.read(
+            body.rotation().as_dquat(),
+            body.angvel().as_dvec3(),
+            accel,
+            gravity.as_dvec3(),
+            dt,
+        );
+        self.filter.update(&s, dt);
+    }
+
+    /// The filter's attitude, body to world.
+    pub fn attitude(&self) -> DQuat {
+        self.filter.attitude()
+    }
+}
+
+/// Env `id`'s IMU draws from random stream `IMU_STREAMS + id` of the run seed.
+const IMU_STREAMS: u64 = 2 << 32;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::env::unity_euler;
+    use common::config::SensorErrors;
+
+    const DT: f64 = 0.02;
+    const GRAVITY: DVec3 = DVec3::new(0.0, -9.81, 0.0);
+
+    /// Angle between two attitudes, degrees.
+    fn off_deg(a: DQuat, b: DQuat) -> f64 {
+        a.angle_between(b).to_degrees()
+    }
+
+    /// Runs `seconds` of a still robot at `truth` through `imu` and `filter`.
+    fn still(imu: &mut Imu, filter: &mut Mahony, truth: DQuat, seconds: f64) {
+        for _ in 0..(seconds / DT).round() as usize {
+            let s = imu.read(truth, DVec3::ZERO, DVec3::ZERO, GRAVITY, DT);
+            filter.update(&s, DT);
+        }
+    }
+
+    #[test]
+    fn started_ten_degrees_off_it_converges_within_five_seconds_on_still_flat_ground() {
+        let cfg = ImuConfig::default();
+        let mut imu = Imu::new(&cfg, Rng::new(2));
+        let truth = DQuat::IDENTITY;
+        let start = DQuat::from_rotation_x(10f64.to_radians());
+        let mut filter = Mahony::new(&cfg.filter, start);
+        assert!((off_deg(filter.attitude(), truth) - 10.0).abs() < 1e-9);
+        still(&mut imu, &mut filter, truth, 5.0);
+        let off = off_deg(filter.attitude(), truth);
+        assert!(off < 0.5, "{off:.3}° off after 5 s");
+    }
+
+    /// A gyro whose only error is a constant bias of 0.02 rad/s about X (pitch).
+    fn biased_gyro() -> ImuConfig {
+        let mut cfg = ImuConfig::default();
+        cfg.gyro.noise_density = 0.0;
+        cfg.gyro.bias_walk = 0.0;
+        cfg.gyro.scale_error = 0.0;
+        cfg.gyro.turn_on_bias = 0.0;
+        cfg.gyro.bits = 0;
+        cfg.accel = SensorErrors {
+            noise_density: 0.0,
+            bias_walk: 0.0,
+            turn_on_bias: 0.0,
+            scale_error: 0.0,
+            bits: 0,
+            ..cfg.accel
+        };
+        cfg
+    }
+
+    fn pitch_error_with_bias(ki: f64) -> (f64, DVec3) {
+        let mut cfg = biased_gyro();
+        cfg.filter.ki = ki;
+        let mut imu = Imu::new(&cfg, Rng::new(3));
+        let truth = DQuat::IDENTITY;
+        let mut filter = Mahony::new(&cfg.filter, truth);
+        let bias = DVec3::new(0.02, 0.0, 0.0);
+        for _ in 0..(120.0 / DT) as usize {
+            let mut s = imu.read(truth, DVec3::ZERO, DVec3::ZERO, GRAVITY, DT);
+            s.gyro += bias;
+            filter.update(&s, DT);
+        }
+        let pitch = unity_euler(filter.attitude().as_quat())[0];
+        (pitch.to_degrees().abs(), filter.bias())
+    }
+
+    #[test]
+    fn the_bias_integral_absorbs_a_constant_gyro_bias() {
+        // Proportional only: a standing error of bias / kp = 0.02 rad, 1.15°.
+        let (without, _) = pitch_error_with_bias(0.0);
+        assert!(
+            (without - 0.02f64.to_degrees()).abs() < 0.01,
+            "{without:.3}°"
+        );
+        let (with, learned) = pitch_error_with_bias(0.05);
+        assert!(with < 0.1, "{with:.3}° with the integral");
+        assert!((learned.x - 0.02).abs() < 1e-3, "{learned:?}");
+    }
+
+    #[test]
+    fn the_gate_ignores_a_two_g_jolt() {
+        let cfg = biased_gyro();
+        let truth = DQuat::IDENTITY;
+        let jolt = ImuSample {
+            gyro: DVec3::ZERO,
+            accel: DVec3::new(2.0 * 9.81, 9.81, 0.0),
+        };
+        let mut gated = Mahony::new(&cfg.filter, truth);
+        gated.update(&jolt, DT);
+        assert_eq!(gated.attitude(), truth);
+        // Without the gate the same jolt tilts the estimate.
+        let mut open = Mahony::new(
+            &FilterConfig {
+                gate: 10.0,
+                ..cfg.filter.clone()
+            },
+            truth,
+        );
+        open.update(&jolt, DT);
+        assert!(off_deg(open.attitude(), truth) > 0.5);
+    }
+}
