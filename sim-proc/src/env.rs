@@ -194,7 +194,11 @@ impl Env {
     /// Restarts the attitude filter on a robot just (re)placed in a new world.
     fn placed(&mut self) {
         if let Some(s) = self.sensing.as_mut() {
-            s.place(&self.world.bodies[self.robot.chassis]);
+            s.place(
+                &self.world.bodies[self.robot.chassis],
+                self.world.gravity,
+                self.cfg.physics_dt,
+            );
         }
     }
 
@@ -507,30 +511,55 @@ mod tests {
         assert_eq!(env.faults, 0);
     }
 
+    /// Mean rolling standard deviation of `xs` over windows of `w`.
+    fn rolling_std(xs: &[f64], w: usize) -> f64 {
+        let stds: Vec<f64> = xs
+            .windows(w)
+            .map(|win| {
+                let m = win.iter().sum::<f64>() / w as f64;
+                (win.iter().map(|v| (v - m).powi(2)).sum::<f64>() / (w - 1) as f64).sqrt()
+            })
+            .collect();
+        stds.iter().sum::<f64>() / stds.len() as f64
+    }
+
     #[test]
-    fn the_imu_filter_tracks_the_true_pitch_while_driving_on_rough_ground() {
-        let mut cfg = SimConfig {
-            flat_envs: 0,
-            rough_envs: 1,
-            ..SimConfig::default()
-        };
-        cfg.observation = ObservationSource::Imu;
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-        let mut env = Env::new(0, &cfg, &terrain, 11);
-        let mut goto = GoToController::new(cfg.robot.action_limit);
-        let (mut sq, mut n, mut spread) = (0.0, 0, 0.0f64);
-        for _ in 0..1500 {
-            env.step(goto.act(0, &env.observe()));
-            let (truth, seen) = (env.pose().euler[0], env.observed_euler()[0]);
-            sq += (seen - truth).powi(2);
-            spread = spread.max(truth.abs());
-            n += 1;
+    fn the_imu_filter_tracks_the_true_pitch_and_its_rolling_std_per_area() {
+        for (rough, most_pitch_deg) in [(false, 0.5), (true, 2.0)] {
+            let mut cfg = SimConfig {
+                flat_envs: usize::from(!rough),
+                rough_envs: usize::from(rough),
+                ..SimConfig::default()
+            };
+            cfg.observation = ObservationSource::Imu;
+            let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+            let mut env = Env::new(0, &cfg, &terrain, 11);
+            let mut goto = GoToController::new(cfg.robot.action_limit);
+            let (mut truth, mut seen) = (Vec::new(), Vec::new());
+            for _ in 0..2000 {
+                env.step(goto.act(0, &env.observe()));
+                truth.push(env.pose().euler[0]);
+                seen.push(env.observed_euler()[0]);
+            }
+            let sq: f64 = truth.iter().zip(&seen).map(|(t, s)| (s - t).powi(2)).sum();
+            let rms = (sq / truth.len() as f64).sqrt().to_degrees();
+            assert!(rms < 1.0, "rough {rough}: RMS pitch error {rms:.3}°");
+            let most = truth.iter().fold(0.0f64, |m, t| m.max(t.abs()));
+            assert!(
+                most.to_degrees() > most_pitch_deg,
+                "the ground pitched the robot"
+            );
+            // SPEC S7's signal, the rolling std of sin θx at window 70, as the IMU sees it.
+            let sin = |xs: &[f64]| xs.iter().map(|x| x.sin()).collect::<Vec<_>>();
+            let (t, s) = (rolling_std(&sin(&truth), 70), rolling_std(&sin(&seen), 70));
+            assert!(
+                (s / t - 1.0).abs() < 0.1,
+                "rough {rough}: {s:.4} against {t:.4}"
+            );
         }
-        let rms = (sq / f64::from(n)).sqrt().to_degrees();
-        assert!(rms < 1.0, "RMS pitch error {rms:.3}°");
-        assert!(spread.to_degrees() > 2.0, "the ground pitched the robot");
         // The truth path is untouched: without the IMU the observation is the pose's.
-        cfg.observation = ObservationSource::Truth;
+        let cfg = SimConfig::default();
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
         let env = Env::new(0, &cfg, &terrain, 11);
         assert_eq!(env.observed_euler(), env.pose().euler);
     }

@@ -71,6 +71,8 @@ pub struct FilterConfig {
     pub ki: f64,
     /// The accelerometer corrects the attitude only while | |a| − g | ≤ this × g. (0, 10]. Default 0.1.
     pub gate: f64,
+    /// Gyro samples averaged at each spawn, the robot standing still, as the filter's first bias estimate; 0 skips it. 0 ..= 10000. Default 25.
+    pub calibration_samples: usize,
 }
 
 /// The IMU and its filter.
@@ -124,6 +126,7 @@ impl Default for FilterConfig {
             kp: 1.0,
             ki: 0.05,
             gate: 0.1,
+            calibration_samples: 25,
         }
     }
 }
@@ -148,6 +151,12 @@ impl ImuConfig {
         ])?;
         in_range("sim.imu.filter.kp", self.filter.kp, 0.0, 100.0)?;
         in_range("sim.imu.filter.ki", self.filter.ki, 0.0, 10.0)?;
-        in_range("sim.imu.filter.gate", self.filter.gate, 1e-6, 10.0)
+        in_range("sim.imu.filter.gate", self.filter.gate, 1e-6, 10.0)?;
+        count_in(
+            "sim.imu.filter.calibration-samples",
+            self.filter.calibration_samples,
+            0,
+            10_000,
+        )
     }
 }
