@@ -36,14 +36,6 @@ impl Mahony {
         }
     }
 
-    /// The same, with `bias` as its first estimate of the gyroscope's bias.
-    pub fn with_bias(cfg: &FilterConfig, q: DQuat, bias: DVec3) -> Self {
-        Self {
-            bias,
-            ..Self::new(cfg, q)
-        }
-    }
-
     /// The estimated attitude, body to world.
     pub fn attitude(&self) -> DQuat {
         self.q
@@ -107,8 +99,10 @@ impl Sensing {
                 .read(rot, DVec3::ZERO, DVec3::ZERO, gravity.as_dvec3(), dt)
                 .gyro;
         }
-        let bias = if n > 0 { sum / n as f64 } else { DVec3::ZERO };
-        self.filter = Mahony::with_bias(&self.filter.cfg, rot, bias);
+        self.filter = Mahony::new(&self.filter.cfg, rot);
+        if n > 0 {
+            self.filter.bias = sum / n as f64;
+        }
         self.last_velocity = body.linvel().as_dvec3();
     }
 
@@ -140,7 +134,7 @@ const IMU_STREAMS: u64 = 2 << 32;
 mod tests {
     use super::*;
     use crate::env::unity_euler;
-    use common::config::SensorErrors;
+    use crate::imu::tests::quiet;
 
     const DT: f64 = 0.02;
     const GRAVITY: DVec3 = DVec3::new(0.0, -9.81, 0.0);
@@ -171,27 +165,17 @@ mod tests {
         assert!(off < 0.5, "{off:.3}° off after 5 s");
     }
 
-    /// A gyro whose only error is a constant bias of 0.02 rad/s about X (pitch).
-    fn biased_gyro() -> ImuConfig {
-        let mut cfg = ImuConfig::default();
-        cfg.gyro.noise_density = 0.0;
-        cfg.gyro.bias_walk = 0.0;
-        cfg.gyro.scale_error = 0.0;
-        cfg.gyro.turn_on_bias = 0.0;
-        cfg.gyro.bits = 0;
-        cfg.accel = SensorErrors {
-            noise_density: 0.0,
-            bias_walk: 0.0,
-            turn_on_bias: 0.0,
-            scale_error: 0.0,
-            bits: 0,
-            ..cfg.accel
-        };
-        cfg
+    /// An IMU with no errors: the tests below add the one they are about.
+    fn error_free() -> ImuConfig {
+        ImuConfig {
+            gyro: quiet(),
+            accel: quiet(),
+            ..ImuConfig::default()
+        }
     }
 
     fn pitch_error_with_bias(ki: f64) -> (f64, DVec3) {
-        let mut cfg = biased_gyro();
+        let mut cfg = error_free();
         cfg.filter.ki = ki;
         let mut imu = Imu::new(&cfg, Rng::new(3));
         let truth = DQuat::IDENTITY;
@@ -241,7 +225,7 @@ mod tests {
 
     #[test]
     fn the_gate_ignores_a_two_g_jolt() {
-        let cfg = biased_gyro();
+        let cfg = error_free();
         let truth = DQuat::IDENTITY;
         let jolt = ImuSample {
             gyro: DVec3::ZERO,

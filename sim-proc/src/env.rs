@@ -141,9 +141,8 @@ impl Env {
             .then(|| Rng::derive(self.course_seed, self.episode_index));
         if let Some(leg) = leg.as_mut().filter(|_| self.episode_index > 0) {
             let yaw = leg.range(-std::f64::consts::PI, std::f64::consts::PI);
-            (self.world, self.robot) =
-                build_world(&self.cfg, &self.terrain, self.episode.target, yaw);
-            self.placed();
+            let placed = build_world(&self.cfg, &self.terrain, self.episode.target, yaw);
+            self.place(placed);
         }
         let start = self.pose().ground();
         let rng = leg.as_mut().unwrap_or(&mut self.rng);
@@ -191,7 +190,13 @@ impl Env {
         self.action
     }
 
-    /// Restarts the attitude filter on a robot just (re)placed in a new world.
+    /// Moves the env into a freshly built world and robot.
+    fn place(&mut self, (world, robot): (PhysicsWorld, Robot)) {
+        (self.world, self.robot) = (world, robot);
+        self.placed();
+    }
+
+    /// Restarts the attitude filter on a robot just placed in a new world.
     fn placed(&mut self) {
         if let Some(s) = self.sensing.as_mut() {
             s.place(
@@ -305,9 +310,8 @@ impl Env {
         let (target, episode_steps) = (self.episode.target, self.episode.steps);
         if let Some(ending) = result.ending {
             if ending.respawns() && self.cfg.task.episodes == EpisodeStart::Chained {
-                let (world, robot) = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
-                (self.world, self.robot) = (world, robot);
-                self.placed();
+                let placed = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
+                self.place(placed);
             }
             self.episode_index += 1;
             self.new_episode();

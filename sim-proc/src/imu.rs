@@ -100,14 +100,15 @@ impl Imu {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use std::marker::PhantomData;
 
     const DT: f64 = 0.02;
     const GRAVITY: DVec3 = DVec3::new(0.0, -9.81, 0.0);
 
-    fn quiet<S>() -> SensorErrors<S> {
+    /// A sensor with no errors and a range too wide to saturate.
+    pub(crate) fn quiet<S>() -> SensorErrors<S> {
         SensorErrors {
             noise_density: 0.0,
             bias_walk: 0.0,
