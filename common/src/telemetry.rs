@@ -46,6 +46,22 @@ pub struct TelemetryRow {
     /// Target position on the ground, metres.
     pub target_x: f64,
     pub target_z: f64,
+    /// The IMU's orientation filter's Euler angles, as `theta_*`, and the sin of its θx: the
+    /// estimator's signal with `estimator.signal = "imu"`. NaN when the sim ran no IMU, and
+    /// in recordings made before these columns existed ([`TelemetryRow::OPTIONAL_COLUMNS`]).
+    #[serde(default = "not_recorded")]
+    pub imu_theta_x: f64,
+    #[serde(default = "not_recorded")]
+    pub imu_theta_y: f64,
+    #[serde(default = "not_recorded")]
+    pub imu_theta_z: f64,
+    #[serde(default = "not_recorded")]
+    pub imu_sin_pitch: f64,
+}
+
+/// A column the recording does not have.
+fn not_recorded() -> f64 {
+    f64::NAN
 }
 
 /// Why a telemetry CSV could not be read.
@@ -75,6 +91,23 @@ pub enum TelemetryError {
 }
 
 impl TelemetryRow {
+    /// Columns a telemetry CSV may lack; they read as NaN.
+    pub const OPTIONAL_COLUMNS: &[&str] =
+        &["imu_theta_x", "imu_theta_y", "imu_theta_z", "imu_sin_pitch"];
+
+    /// This row with the IMU filter's attitude in place of the true one (`theta_*` and
+    /// `sin_pitch`), for an analysis with `estimator.signal = "imu"`.
+    #[must_use]
+    pub fn with_imu_attitude(self) -> Self {
+        Self {
+            theta_x: self.imu_theta_x,
+            theta_y: self.imu_theta_y,
+            theta_z: self.imu_theta_z,
+            sin_pitch: self.imu_sin_pitch,
+            ..self
+        }
+    }
+
     /// The column names a telemetry CSV must have: the serde field names, read from the
     /// `Deserialize` impl so they can never drift from the struct.
     pub fn columns() -> &'static [&'static str] {
@@ -123,7 +156,9 @@ impl<R: Read> TelemetryReader<R> {
             .map_err(|e| csv_error(path, &csv::StringRecord::new(), None, e, 1))?
             .clone();
         let expected = TelemetryRow::columns();
-        if let Some(missing) = expected.iter().find(|c| !headers.iter().any(|h| h == **c)) {
+        if let Some(missing) = expected.iter().find(|c| {
+            !TelemetryRow::OPTIONAL_COLUMNS.contains(c) && !headers.iter().any(|h| h == **c)
+        }) {
             return Err(TelemetryError::MissingColumn {
                 path: path.to_path_buf(),
                 column: (*missing).to_string(),

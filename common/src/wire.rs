@@ -160,7 +160,7 @@ pub const EVENT_FAULT: u8 = 8;
 /// One env at one tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.EnvTick.v2")]
+#[type_name("lavatube.EnvTick.v3")]
 pub struct EnvTick {
     pub env: u32,
     /// True terrain under the robot (0 flat, 1 rough): the env's area, or on the mixed
@@ -180,6 +180,11 @@ pub struct EnvTick {
     pub reward: f32,
     /// The episode's target on the ground (x, z), metres; on an ending tick, the ended one's.
     pub target: [f32; 2],
+    /// The IMU's orientation filter's Euler angles, as `euler`; NaN when the sim runs no IMU
+    /// (`SimConfig::simulates_imu`).
+    pub imu_euler: [f32; 3],
+    /// sin of `imu_euler`'s θx: the estimator's signal with `estimator.signal = "imu"`.
+    pub imu_sin_pitch: f32,
 }
 
 // ---- estimator → sim, monitors: `terrain` ---------------------------------------------------
@@ -468,9 +473,10 @@ mod tests {
         assert_eq!(offset_of!(TickHeader, reach_ticks_sq), 56, "{MSG}");
         assert_eq!(
             (size_of::<EnvTick>(), align_of::<EnvTick>()),
-            (48, 4),
+            (64, 4),
             "{MSG}"
         );
+        assert_eq!(offset_of!(EnvTick, imu_euler), 48, "{MSG}");
         assert_eq!(offset_of!(EnvTick, pos), 8, "{MSG}");
         assert_eq!(offset_of!(EnvTick, sin_pitch), 32, "{MSG}");
         assert_eq!(offset_of!(EnvTick, target), 40, "{MSG}");

@@ -105,7 +105,9 @@ fn expected() -> Value {
             euler,
             sin_pitch,
             reward,
-            target
+            target,
+            imu_euler,
+            imu_sin_pitch
         }),
         layout!(TerrainHeader {
             tick,

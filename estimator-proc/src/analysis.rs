@@ -307,22 +307,9 @@ mod tests {
             env,
             tick,
             area,
-            episode: 0,
-            x: 0.0,
-            y: 0.0,
-            z: 0.0,
             theta_x: sin_pitch.asin(),
-            theta_y: 0.0,
-            theta_z: 0.0,
             sin_pitch,
-            action_left: 0.0,
-            action_right: 0.0,
-            reward: 0.0,
-            terminated: false,
-            truncated: false,
-            success: false,
-            target_x: 0.0,
-            target_z: 0.0,
+            ..TelemetryRow::default()
         }
     }
 

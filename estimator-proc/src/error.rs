@@ -17,6 +17,10 @@ pub enum EstimatorError {
         field: &'static str,
         value: f64,
     },
+    #[error(
+        "{path}: line {line} has no IMU attitude (`imu_sin_pitch` is NaN): it was recorded without an IMU; analyse it with estimator.signal = \"truth\""
+    )]
+    NoImu { path: PathBuf, line: u64 },
     #[error("{path}: no telemetry rows after the header")]
     Empty { path: PathBuf },
     #[error("value #{index} is {value}; mixture data must be finite")]

@@ -4,7 +4,7 @@
 use crate::analysis::{AREAS, PAPER_TABLE_3, PaperRow, WindowResult};
 use crate::evaluation::{ClassifierScore, OnlineEval};
 use crate::{EstimatorError, Result};
-use common::config::MixtureFeature;
+use common::config::{AttitudeSource, MixtureFeature};
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::path::Path;
@@ -27,6 +27,8 @@ pub struct AnalysisReport {
     pub equal_weights: bool,
     /// The rolling-std convention.
     pub std: &'static str,
+    /// Whose sin θx: the simulator's pose (`truth`) or the IMU filter's (`imu`).
+    pub signal: AttitudeSource,
     pub series: SeriesCount,
     pub windows: Vec<WindowResult>,
     pub paper_table_3: Vec<PaperRow>,
@@ -81,13 +83,17 @@ impl AnalysisReport {
         let _ = writeln!(md, "# Terrain identification (SPEC S7)\n");
         let _ = writeln!(
             md,
-            "Input `{}`: {} flat and {} rough series, first {} ticks of each dropped; rolling {} of sin θx; \
+            "Input `{}`: {} flat and {} rough series, first {} ticks of each dropped; rolling {} of sin θx {}; \
              {}-component Gaussian mixture over {} by EM (seed {}){}, components by ascending mean (first = flat).\n",
             self.input,
             self.series.flat,
             self.series.rough,
             self.warmup_ticks,
             self.std,
+            match self.signal {
+                AttitudeSource::Truth => "from the simulator's pose",
+                AttitudeSource::Imu => "from the IMU's orientation filter",
+            },
             self.components,
             match self.windows.first().map(|w| w.feature) {
                 Some(MixtureFeature::LogStd) => {

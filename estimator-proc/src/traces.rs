@@ -1,28 +1,48 @@
 //! Reading recorded telemetry for the analysis: `common`'s telemetry CSV reader, plus the
 //! checks the analysis needs on top of a well-formed file.
 //!
-//! Non-finite values are refused in the columns the analysis uses (`sin_pitch`, `theta_z`):
-//! a NaN pitch means a broken recording, and skipping it silently would shift every rolling
-//! window after it. A file with no rows is refused too.
+//! With `estimator.signal = "imu"` the IMU filter's columns stand in for the true attitude.
+//! Non-finite values are refused in the columns the analysis uses (`sin_pitch`, `theta_z`, or
+//! their `imu_` twins): a NaN pitch means a broken recording (or, in the IMU's columns, one
+//! made without an IMU), and skipping it silently would shift every rolling window after it.
+//! A file with no rows is refused too.
 
 use crate::{EstimatorError, Result};
 use common::TelemetryRow;
+use common::config::AttitudeSource;
 use common::telemetry::TelemetryReader;
 use std::io::Read;
 use std::path::Path;
 
-/// Reads and checks a telemetry CSV file.
-pub fn read_telemetry(path: &Path) -> Result<Vec<TelemetryRow>> {
-    checked(TelemetryReader::open(path)?, path)
+/// Reads and checks a telemetry CSV file, its attitude taken from `signal`.
+pub fn read_telemetry(path: &Path, signal: AttitudeSource) -> Result<Vec<TelemetryRow>> {
+    checked(TelemetryReader::open(path)?, path, signal)
 }
 
-/// Every row of `rows`, refusing non-finite analysis columns and an empty file; `path` only
-/// labels errors.
-fn checked<R: Read>(rows: TelemetryReader<R>, path: &Path) -> Result<Vec<TelemetryRow>> {
+/// Every row of `rows` with its attitude from `signal`, refusing non-finite analysis columns
+/// and an empty file; `path` only labels errors.
+fn checked<R: Read>(
+    rows: TelemetryReader<R>,
+    path: &Path,
+    signal: AttitudeSource,
+) -> Result<Vec<TelemetryRow>> {
+    let fields = match signal {
+        AttitudeSource::Truth => ["sin_pitch", "theta_z"],
+        AttitudeSource::Imu => ["imu_sin_pitch", "imu_theta_z"],
+    };
     let mut out = Vec::new();
     for r in rows {
-        let (line, row) = r?;
-        for (field, value) in [("sin_pitch", row.sin_pitch), ("theta_z", row.theta_z)] {
+        let (line, mut row) = r?;
+        if signal == AttitudeSource::Imu {
+            if row.imu_sin_pitch.is_nan() {
+                return Err(EstimatorError::NoImu {
+                    path: path.to_path_buf(),
+                    line,
+                });
+            }
+            row = row.with_imu_attitude();
+        }
+        for (field, value) in fields.into_iter().zip([row.sin_pitch, row.theta_z]) {
             if !value.is_finite() {
                 return Err(EstimatorError::NonFiniteField {
                     path: path.to_path_buf(),
@@ -51,7 +71,11 @@ mod tests {
 
     fn parse(text: &str) -> Result<Vec<TelemetryRow>> {
         let path = Path::new("t.csv");
-        checked(TelemetryReader::new(text.as_bytes(), path)?, path)
+        checked(
+            TelemetryReader::new(text.as_bytes(), path)?,
+            path,
+            AttitudeSource::Truth,
+        )
     }
 
     #[test]
@@ -87,6 +111,26 @@ mod tests {
     }
 
     #[test]
+    fn the_imu_signal_reads_the_imu_columns_and_names_a_recording_without_them() {
+        let path = Path::new("t.csv");
+        let read = |text: &str| {
+            checked(
+                TelemetryReader::new(text.as_bytes(), path)?,
+                path,
+                AttitudeSource::Imu,
+            )
+        };
+        let row = "0,0,flat,0,0,0,0,0.1,0,0.2,0.0998,0,0,0,false,false,false,0,0";
+        let e = read(&format!("{HEADER}\n{row}\n")).expect_err("no IMU columns");
+        assert!(matches!(e, EstimatorError::NoImu { line: 2, .. }), "{e}");
+        let imu = format!("{HEADER},imu_theta_x,imu_theta_y,imu_theta_z,imu_sin_pitch\n");
+        let rows = read(&format!("{imu}{row},0.05,0,0.3,0.05\n")).expect("IMU columns");
+        assert_eq!((rows[0].sin_pitch, rows[0].theta_z), (0.05, 0.3));
+        let e = read(&format!("{imu}{row},0.05,0,inf,0.05\n")).expect_err("inf");
+        assert!(e.to_string().contains("column `imu_theta_z` is inf"), "{e}");
+    }
+
+    #[test]
     fn reader_errors_pass_through() {
         let e = parse(&format!("{HEADER}\n0,0,flat\n")).expect_err("short row");
         assert!(
@@ -97,7 +141,7 @@ mod tests {
             "{e}"
         );
         assert!(matches!(
-            read_telemetry(Path::new("/nonexistent/t.csv")),
+            read_telemetry(Path::new("/nonexistent/t.csv"), AttitudeSource::Truth),
             Err(EstimatorError::Telemetry(TelemetryError::Read { .. }))
         ));
     }

@@ -44,6 +44,11 @@ fn write_traces(dir: &Path) -> PathBuf {
                 success: false,
                 target_x: 0.0,
                 target_z: 0.0,
+                // The IMU's view: the same pitch with sensor noise.
+                imu_theta_x: p.asin() + 0.001 * rng.normal(),
+                imu_theta_y: 0.0,
+                imu_theta_z: theta_z,
+                imu_sin_pitch: *p + 0.001 * rng.normal(),
             })
             .expect("row");
         }
@@ -204,4 +209,34 @@ fn the_binary_exits_1_with_one_line_on_bad_input() {
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("cannot read /nonexistent.csv"));
     assert_eq!(run(&["--help"]).status.code(), Some(0));
+}
+
+#[test]
+fn one_recording_is_scored_on_the_true_and_on_the_imu_pitch() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let traces = write_traces(tmp.path());
+    let analyze = |signal: &str| {
+        let out = tmp.path().join(signal);
+        let args = [
+            "estimator-proc",
+            "analyze",
+            traces.to_str().expect("utf8"),
+            "--windows",
+            "70",
+            "--signal",
+            signal,
+            "--out",
+            out.to_str().expect("utf8"),
+        ];
+        let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(args).expect("args");
+        estimator_proc::run(cli).expect("analysis");
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
+                .expect("valid json");
+        assert_eq!(json["signal"], signal);
+        finite_numbers(&json["windows"][0]["means"])
+    };
+    let (truth, imu) = (analyze("truth"), analyze("imu"));
+    // The IMU's columns carry extra noise: every window's std, and so each mean, is larger.
+    assert!(imu[0] > truth[0] && imu[1] > truth[1], "{truth:?} {imu:?}");
 }

@@ -92,12 +92,12 @@ class TickHeader(Wire):
 
 class EnvTick(Wire):
     """One env at one tick: true area, `EVENT_*` bits, acting slot, pose, sin θx, reward,
-    target (x, z)."""
+    target (x, z), and the IMU filter's Euler angles and sin θx (NaN without an IMU)."""
 
-    TYPE_NAME = "lavatube.EnvTick.v2"
+    TYPE_NAME = "lavatube.EnvTick.v3"
     _fields_ = [("env", u32), ("area", u8), ("events", u8), ("slot", u8), ("_reserved", u8),
                 ("pos", f32 * 3), ("euler", f32 * 3), ("sin_pitch", f32), ("reward", f32),
-                ("target", f32 * 2)]
+                ("target", f32 * 2), ("imu_euler", f32 * 3), ("imu_sin_pitch", f32)]
 
 
 # ---- estimator → sim, monitors: `terrain` -----------------------------------------------------

@@ -32,6 +32,9 @@ def test_a_live_run_reads_back_through_the_package(run):
         assert t.env.base.nbytes == t.envs * env_tick
         assert t.pos.shape == t.euler.shape == (t.envs, 3)
         np.testing.assert_allclose(t.sin_pitch, np.sin(t.euler[:, 0]), rtol=1e-6, atol=1e-7)
+        # smoke.toml simulates no IMU: its filtered angles are NaN, not zeros.
+        assert t.imu_euler.shape == (t.envs, 3)
+        assert np.isnan(t.imu_euler).all() and np.isnan(t.imu_sin_pitch).all()
 
     assert policies, "no policy header arrived"
     assert np.all(np.diff([p.version for p in policies]) > 0), "policy versions must rise"

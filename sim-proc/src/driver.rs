@@ -104,6 +104,7 @@ impl Driver {
             .zip(&self.acted)
         {
             let p = env.pose();
+            let imu = env.imu_euler().unwrap_or([f64::NAN; 3]);
             let events = info.ending.map_or(0, |e| {
                 let kind = if e.terminated() {
                     wire::EVENT_TERMINATED
@@ -132,6 +133,8 @@ impl Driver {
                 sin_pitch: p.euler[0].sin() as f32,
                 reward: info.reward as f32,
                 target: info.target.map(|v| v as f32),
+                imu_euler: imu.map(|v| v as f32),
+                imu_sin_pitch: imu[0].sin() as f32,
                 ..EnvTick::default()
             };
         }

@@ -5,7 +5,7 @@ use crate::attitude::Sensing;
 use crate::robot::{self, Robot, TERRAIN_GROUP};
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
-use common::config::{AreaKind, EpisodeStart, ObservationSource, Rect, SimConfig};
+use common::config::{AreaKind, AttitudeSource, EpisodeStart, Rect, SimConfig};
 use common::{OBS_DIM, Rng};
 use glam::{EulerRot, Quat, Vec3};
 use rapier3d::prelude::*;
@@ -95,7 +95,7 @@ pub struct Env {
     course_seed: u64,
     faults: u64,
     action: [f32; 2],
-    /// The IMU and its filter, with `sim.observation = "imu"`.
+    /// The IMU and its filter, when [`SimConfig::simulates_imu`].
     sensing: Option<Sensing>,
 }
 
@@ -125,7 +125,8 @@ impl Env {
             course_seed: Rng::derive(seed, COURSE_STREAMS + id as u64).next_u64(),
             faults: 0,
             action: [0.0; 2],
-            sensing: (cfg.observation == ObservationSource::Imu)
+            sensing: cfg
+                .simulates_imu()
                 .then(|| Sensing::new(&cfg.imu, seed, id)),
         };
         env.placed();
@@ -207,12 +208,20 @@ impl Env {
         }
     }
 
+    /// The IMU filter's attitude (θx, θy, θz), when the env carries an IMU
+    /// ([`SimConfig::simulates_imu`]).
+    pub fn imu_euler(&self) -> Option<[f64; 3]> {
+        self.sensing
+            .as_ref()
+            .map(|s| unity_euler(s.attitude().as_quat()))
+    }
+
     /// The attitude the observation reports, (θx, θy, θz): the pose's, or with
     /// `sim.observation = "imu"` the IMU filter's.
     pub fn observed_euler(&self) -> [f64; 3] {
-        match &self.sensing {
-            Some(s) => unity_euler(s.attitude().as_quat()),
-            None => self.pose().euler,
+        match self.cfg.observation {
+            AttitudeSource::Imu => self.imu_euler().unwrap_or_else(|| self.pose().euler),
+            AttitudeSource::Truth => self.pose().euler,
         }
     }
 
@@ -535,7 +544,7 @@ mod tests {
                 rough_envs: usize::from(rough),
                 ..SimConfig::default()
             };
-            cfg.observation = ObservationSource::Imu;
+            cfg.observation = AttitudeSource::Imu;
             let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
             let mut env = Env::new(0, &cfg, &terrain, 11);
             let mut goto = GoToController::new(cfg.robot.action_limit);
@@ -561,11 +570,35 @@ mod tests {
                 "rough {rough}: {s:.4} against {t:.4}"
             );
         }
-        // The truth path is untouched: without the IMU the observation is the pose's.
-        let cfg = SimConfig::default();
+    }
+
+    #[test]
+    fn an_imu_simulated_for_telemetry_only_changes_no_observation() {
+        // The truth path is untouched: an IMU the observation does not read
+        // (`sim.imu.simulate`, or `estimator.signal = "imu"`) leaves physics and
+        // observations bit-identical, and only then are the filtered angles there.
+        let cfg = SimConfig {
+            flat_envs: 0,
+            rough_envs: 1,
+            ..SimConfig::default()
+        };
+        let mut sensed = cfg.clone();
+        sensed.imu.simulate = true;
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-        let env = Env::new(0, &cfg, &terrain, 11);
-        assert_eq!(env.observed_euler(), env.pose().euler);
+        let mut plain = Env::new(0, &cfg, &terrain, 11);
+        let mut with_imu = Env::new(0, &sensed, &terrain, 11);
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        for _ in 0..300 {
+            let obs = plain.observe();
+            assert_eq!(obs, with_imu.observe());
+            assert_eq!(plain.observed_euler(), plain.pose().euler);
+            let action = goto.act(0, &obs);
+            let (a, b) = (plain.step(action), with_imu.step(action));
+            assert_eq!(a.reward.to_bits(), b.reward.to_bits());
+        }
+        assert_eq!(plain.imu_euler(), None);
+        let imu = with_imu.imu_euler().expect("simulated");
+        assert!((imu[0] - with_imu.pose().euler[0]).abs() < 2f64.to_radians());
     }
 
     #[test]

@@ -10,6 +10,7 @@ use std::path::{Path, PathBuf};
 /// One telemetry row for an env after a step.
 pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
     let p = env.pose();
+    let imu = env.imu_euler().unwrap_or([f64::NAN; 3]);
     let [l, r] = env.action();
     TelemetryRow {
         env: env.id as u32,
@@ -31,6 +32,10 @@ pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
         success: info.ending == Some(Ending::Success),
         target_x: info.target[0],
         target_z: info.target[1],
+        imu_theta_x: imu[0],
+        imu_theta_y: imu[1],
+        imu_theta_z: imu[2],
+        imu_sin_pitch: imu[0].sin(),
     }
 }
 

@@ -1,7 +1,7 @@
 //! `[estimator]`: terrain estimation (SPEC S7) and the feature its mixture is fitted on.
 
-use super::ConfigError;
 use super::range::{count_in, in_range, invalid};
+use super::{AttitudeSource, ConfigError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -55,6 +55,10 @@ pub struct EstimatorConfig {
     /// What the mixture is fitted on, offline and online: "std", each window's std of
     /// sin θx (SPEC S7), or "log-std", its natural log (interpretation). Default "std".
     pub feature: MixtureFeature,
+    /// Where each tick's sin θx comes from, offline and online: "truth", the simulator's
+    /// pose (SPEC S7), or "imu", the orientation filter on the simulated IMU (needs
+    /// `sim.observation = "imu"` or `sim.imu.simulate = true`). Default "truth".
+    pub signal: AttitudeSource,
 }
 
 /// The value of a window the terrain mixture sees (SPEC S7: the window's std of sin θx).
@@ -109,6 +113,7 @@ impl Default for EstimatorConfig {
             min_speed: 0.02,
             model: None,
             feature: MixtureFeature::Std,
+            signal: AttitudeSource::Truth,
         }
     }
 }

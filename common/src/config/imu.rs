@@ -10,10 +10,12 @@ use super::range::{count_in, in_range};
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
 
-/// Where SPEC S5's six cos/sin attitude terms of the observation come from.
+/// Where the robot's attitude (θx, θy, θz) comes from, for the observation's six cos/sin
+/// terms (SPEC S5, `sim.observation`) and for the estimator's sin θx (SPEC S7,
+/// `estimator.signal`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
-pub enum ObservationSource {
+pub enum AttitudeSource {
     /// The simulator's pose, noise-free (the paper's).
     #[default]
     Truth,
@@ -79,6 +81,9 @@ pub struct FilterConfig {
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
 pub struct ImuConfig {
+    /// Simulate the IMU even when neither `sim.observation` nor `estimator.signal` reads it,
+    /// so telemetry records its filtered angles beside the true ones. Default false.
+    pub simulate: bool,
     pub gyro: SensorErrors<Gyro>,
     pub accel: SensorErrors<Accel>,
     pub filter: FilterConfig,

@@ -22,7 +22,7 @@ mod terrain;
 mod tests;
 
 pub use estimator::{EstimatorConfig, MixtureFeature};
-pub use imu::{Accel, FilterConfig, Gyro, ImuConfig, ObservationSource, SensorErrors};
+pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};
 pub use model_file::OfflineMixture;
 pub use net::{MIN_KEY_BYTES, NetConfig};
 pub use ppo::{PpoConfig, PpoEngine};
@@ -72,9 +72,24 @@ pub struct Config {
 }
 
 impl Config {
-    /// Reads, parses and validates a config file.
+    /// Reads, parses and validates a config file. A top-level `extends = "FILE"` starts from
+    /// that config (relative to this file) and overrides only the keys this file sets.
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
-        let mut cfg: Self = read_toml(path)?;
+        let text = read_text(path)?;
+        let table: toml::Table = parse_toml(&text, path)?;
+        let mut cfg: Self = if table.contains_key(EXTENDS) {
+            let merged = extended(table, path, 0)?;
+            toml::Value::Table(merged)
+                .try_into()
+                .map_err(|e: toml::de::Error| ConfigError::Parse {
+                    path: path.to_path_buf(),
+                    line: 1,
+                    column: 1,
+                    message: e.message().replace('\n', " "),
+                })?
+        } else {
+            parse_toml(&text, path)?
+        };
         if let Some(dir) = path.parent() {
             // Absolute, so the resolved config the launcher writes into the run directory
             // still names the same files from there.
@@ -115,6 +130,13 @@ impl Config {
         self.sim.validate()?;
         self.ppo.validate(self.sim.num_envs())?;
         self.estimator.validate()?;
+        if self.estimator.signal == AttitudeSource::Imu && !self.sim.simulates_imu() {
+            return Err(range::invalid(
+                "estimator.signal",
+                "imu",
+                "needs the IMU simulated: set sim.observation = \"imu\" or sim.imu.simulate = true",
+            ));
+        }
         self.supervise.validate_restarts()?;
         self.reproduce.validate()?;
         self.supervise.validate_grace()?;
@@ -128,14 +150,59 @@ impl Config {
     }
 }
 
+/// The top-level key naming the config a config file starts from.
+const EXTENDS: &str = "extends";
+
+/// How deep `extends` may chain (a cycle ends here).
+const MAX_EXTENDS: usize = 8;
+
+/// `table`, the file at `path`, laid over the config its `extends` names (relative to
+/// `path`), recursively: tables merge key by key, any other value replaces the base's.
+fn extended(mut table: toml::Table, path: &Path, depth: usize) -> Result<toml::Table, ConfigError> {
+    let Some(base) = table.remove(EXTENDS) else {
+        return Ok(table);
+    };
+    let invalid = |reason: &str| ConfigError::Invalid {
+        field: EXTENDS,
+        value: base.to_string(),
+        reason: format!("{reason} (in {})", path.display()),
+    };
+    let Some(name) = base.as_str() else {
+        return Err(invalid("must be the path of a config file"));
+    };
+    if depth >= MAX_EXTENDS {
+        return Err(invalid("chains more than 8 files deep (a cycle?)"));
+    }
+    let base_path = path.parent().unwrap_or(Path::new("")).join(name);
+    let text = read_text(&base_path)?;
+    let mut merged = extended(parse_toml(&text, &base_path)?, &base_path, depth + 1)?;
+    overlay(&mut merged, table);
+    Ok(merged)
+}
+
+/// Lays `top` over `base`.
+fn overlay(base: &mut toml::Table, top: toml::Table) {
+    for (key, value) in top {
+        match (base.get_mut(&key), value) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => overlay(b, t),
+            (_, value) => {
+                base.insert(key, value);
+            }
+        }
+    }
+}
+
+fn read_text(path: &Path) -> Result<String, ConfigError> {
+    std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
+        path: path.to_path_buf(),
+        reason: e.to_string(),
+    })
+}
+
 /// Reads and parses a TOML file (no validation), for any file worded like the run config:
 /// unknown keys and bad values are [`ConfigError`]s naming the file.
 pub fn read_toml<T: DeserializeOwned>(path: &Path) -> Result<T, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|e| ConfigError::Read {
-        path: path.to_path_buf(),
-        reason: e.to_string(),
-    })?;
-    parse_toml(&text, path)
+    parse_toml(&read_text(path)?, path)
 }
 
 /// Parses TOML text (no validation); an error is one line naming `path`, line and column.

@@ -3,7 +3,7 @@
 
 use super::range::{count_in, in_range, invalid};
 use super::{
-    Acting, ConfigError, ImuConfig, ObservationSource, RobotConfig, TaskConfig, TerrainConfig,
+    Acting, AttitudeSource, ConfigError, ImuConfig, RobotConfig, TaskConfig, TerrainConfig,
 };
 use serde::{Deserialize, Serialize};
 
@@ -91,7 +91,9 @@ pub struct SimConfig {
     pub terrain: TerrainConfig,
     pub robot: RobotConfig,
     /// Where the observation's attitude terms come from: `truth` (the paper's) or `imu`. Default truth.
-    pub observation: ObservationSource,
+    pub observation: AttitudeSource,
+    /// The simulated IMU and its filter: run when `observation` or `estimator.signal` is
+    /// `imu`, or with `imu.simulate`.
     pub imu: ImuConfig,
     pub task: TaskConfig,
 }
@@ -111,7 +113,7 @@ impl Default for SimConfig {
             substeps: 5,
             terrain: TerrainConfig::default(),
             robot: RobotConfig::default(),
-            observation: ObservationSource::Truth,
+            observation: AttitudeSource::Truth,
             imu: ImuConfig::default(),
             task: TaskConfig::default(),
         }
@@ -119,6 +121,11 @@ impl Default for SimConfig {
 }
 
 impl SimConfig {
+    /// Whether each env carries the simulated IMU and its filter.
+    pub fn simulates_imu(&self) -> bool {
+        self.observation == AttitudeSource::Imu || self.imu.simulate
+    }
+
     pub fn num_envs(&self) -> usize {
         self.flat_envs + self.rough_envs + self.mixed_envs
     }

@@ -91,7 +91,7 @@ fn a_partial_imu_table_keeps_each_sensors_own_defaults() {
         "[sim]\nobservation = \"imu\"\n[sim.imu.accel]\nbits = 12\n[sim.imu.filter]\nkp = 2.0\n",
     )
     .expect("partial tables");
-    assert_eq!(c.sim.observation, ObservationSource::Imu);
+    assert_eq!(c.sim.observation, AttitudeSource::Imu);
     assert_eq!(c.sim.imu.accel.bits, 12);
     // The accelerometer's other fields and the gyroscope keep their own defaults.
     assert_eq!(
@@ -106,4 +106,54 @@ fn a_partial_imu_table_keeps_each_sensors_own_defaults() {
     assert!(e.to_string().contains("sim.imu.gyro.bits"), "{e}");
     let e = parse("[sim]\nobservation = \"gps\"\n").expect_err("unknown source");
     assert!(e.to_string().contains("unknown variant `gps`"), "{e}");
+}
+
+#[test]
+fn the_estimators_imu_signal_needs_the_imu_simulated() {
+    let e = parse("[estimator]\nsignal = \"imu\"\n").expect_err("no IMU");
+    assert!(
+        e.to_string().contains("estimator.signal")
+            && e.to_string().contains("sim.imu.simulate = true"),
+        "{e}"
+    );
+    for with_imu in [
+        "[sim]\nobservation = \"imu\"\n",
+        "[sim.imu]\nsimulate = true\n",
+    ] {
+        let c = parse(&format!("{with_imu}[estimator]\nsignal = \"imu\"\n")).expect(with_imu);
+        assert!(c.sim.simulates_imu() && c.estimator.signal == AttitudeSource::Imu);
+    }
+    assert!(!Config::default().sim.simulates_imu());
+}
+
+#[test]
+fn a_config_extends_another_and_overrides_only_its_own_keys() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let write = |name: &str, text: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(&path, text).expect("write");
+        path
+    };
+    write(
+        "base.toml",
+        "[run]\nseed = 7\n[sim]\nthreads = 1\nrough-envs = 3\n[sim.task]\nstall-steps = 50\n",
+    );
+    let top = write(
+        "top.toml",
+        "extends = \"base.toml\"\n[sim]\nrough-envs = 1\nobservation = \"imu\"\n",
+    );
+    let c = Config::load(&top).expect("extended");
+    assert_eq!((c.run.seed, c.sim.threads), (7, 1));
+    assert_eq!(c.sim.rough_envs, 1);
+    assert_eq!(c.sim.observation, AttitudeSource::Imu);
+    assert_eq!(c.sim.task.stall_steps, 50);
+    let cycle = write("cycle.toml", "extends = \"cycle.toml\"\n");
+    let e = Config::load(&cycle).expect_err("cycle");
+    assert!(e.to_string().contains("`extends`"), "{e}");
+    let bad = write("bad.toml", "extends = \"base.toml\"\n[sim]\ncolour = 1\n");
+    let e = Config::load(&bad).expect_err("unknown field");
+    assert!(e.to_string().contains("colour"), "{e}");
+    let missing = write("missing.toml", "extends = \"nope.toml\"\n");
+    let e = Config::load(&missing).expect_err("missing base");
+    assert!(e.to_string().contains("nope.toml"), "{e}");
 }

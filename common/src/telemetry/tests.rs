@@ -10,7 +10,27 @@ fn parse(text: &str) -> Result<Vec<TelemetryRow>, TelemetryError> {
 
 #[test]
 fn columns_come_from_the_struct() {
-    assert_eq!(TelemetryRow::columns().join(","), HEADER);
+    assert_eq!(
+        TelemetryRow::columns().join(","),
+        format!("{HEADER},{}", TelemetryRow::OPTIONAL_COLUMNS.join(","))
+    );
+}
+
+#[test]
+fn the_imu_columns_are_optional_and_swap_in_for_the_true_attitude() {
+    let row = "0,0,flat,0,0,0,0,0.1,0.2,0.3,0.0998,0,0,0,false,false,false,0,0";
+    let old = parse(&format!("{HEADER}\n{row}\n")).expect("without IMU columns");
+    assert!(old[0].imu_sin_pitch.is_nan() && old[0].imu_theta_z.is_nan());
+    let new = parse(&format!(
+        "{HEADER},imu_theta_x,imu_theta_y,imu_theta_z,imu_sin_pitch\n{row},0.11,0.21,0.31,0.1098\n"
+    ))
+    .expect("with IMU columns");
+    let imu = new[0].with_imu_attitude();
+    assert_eq!(
+        [imu.theta_x, imu.theta_y, imu.theta_z, imu.sin_pitch],
+        [0.11, 0.21, 0.31, 0.1098]
+    );
+    assert_eq!((imu.env, imu.x, imu.target_z), (0, 0.0, 0.0));
 }
 
 #[test]

@@ -36,7 +36,7 @@ pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
         min_step_travel: gate,
     } = args.input.resolve()?;
     let path = &args.input.traces;
-    let rows = traces::read_telemetry(path)?;
+    let rows = traces::read_telemetry(path, cfg.signal)?;
     let series = analysis::split_series(&rows, cfg.warmup_ticks);
     tracing::info!(rows = rows.len(), series = series.len(), "telemetry read");
     let opts = FitOptions::from_config(&cfg, seed);
@@ -58,6 +58,7 @@ pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
         components: cfg.components,
         equal_weights: cfg.equal_weights,
         std: "sample std (ddof = 1, as pandas rolling().std())",
+        signal: cfg.signal,
         series: SeriesCount {
             flat: count(AreaKind::Flat),
             rough: count(AreaKind::Rough),

@@ -6,6 +6,7 @@ pub mod online;
 pub mod serve;
 
 use clap::{Parser, Subcommand};
+use common::config::AttitudeSource;
 use std::path::{Path, PathBuf};
 
 /// lavatube terrain estimator: rolling pitch statistics and Gaussian mixtures (SPEC S7).
@@ -44,6 +45,10 @@ pub struct InputArgs {
     /// Seed of the k-means++ initialisations [default: the config's `run.seed`].
     #[arg(long)]
     pub seed: Option<u64>,
+    /// Whose sin θx to analyse: `truth` (the simulator's pose) or `imu` (the IMU filter's
+    /// columns, recorded when the sim ran an IMU) [default: the config's `estimator.signal`].
+    #[arg(long, value_parser = parse_signal)]
+    pub signal: Option<AttitudeSource>,
 }
 
 impl InputArgs {
@@ -55,6 +60,9 @@ impl InputArgs {
         let mut est = cfg.estimator;
         if let Some(windows) = &self.windows {
             est.windows = windows.clone();
+        }
+        if let Some(signal) = self.signal {
+            est.signal = signal;
         }
         est.windows.sort_unstable();
         est.windows.dedup();
@@ -78,6 +86,15 @@ fn load_config(path: Option<&Path>) -> anyhow::Result<common::Config> {
         return Ok(common::Config::default());
     };
     Ok(common::Config::load(path).map_err(crate::EstimatorError::from)?)
+}
+
+/// `truth` or `imu`.
+fn parse_signal(s: &str) -> Result<AttitudeSource, String> {
+    match s {
+        "truth" => Ok(AttitudeSource::Truth),
+        "imu" => Ok(AttitudeSource::Imu),
+        _ => Err(format!("`{s}` is not a signal: `truth` or `imu`")),
+    }
 }
 
 /// A window size: an integer in 2..=100000 (the config's range).

@@ -30,7 +30,7 @@ pub fn execute(args: &OnlineArgs) -> anyhow::Result<()> {
         min_step_travel,
     } = args.input.resolve()?;
     let path = &args.input.traces;
-    let rows = traces::read_telemetry(path)?;
+    let rows = traces::read_telemetry(path, cfg.signal)?;
     let series = analysis::split_series(&rows, cfg.warmup_ticks);
     let hold = args.hold as usize;
     let windows = cfg

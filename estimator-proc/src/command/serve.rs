@@ -3,6 +3,7 @@
 //! estimates on `terrain` (SPEC S7 online; DESIGN §1).
 
 use crate::OnlineEstimator;
+use common::config::AttitudeSource;
 use common::ipc::{self, Bus};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
 use std::time::Duration;
@@ -21,6 +22,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     tracing::info!(
         envs = n,
         window = cfg.estimator.online_window,
+        signal = ?cfg.estimator.signal,
         "estimator serving"
     );
     while !bus.stop_requested(&control) {
@@ -35,7 +37,11 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
                     est.reset_env(env)?;
                 }
                 let at = [f64::from(t.pos[0]), f64::from(t.pos[2])];
-                let e = match est.observe_at(env, f64::from(t.sin_pitch), Some(at)) {
+                let signal = match cfg.estimator.signal {
+                    AttitudeSource::Truth => t.sin_pitch,
+                    AttitudeSource::Imu => t.imu_sin_pitch,
+                };
+                let e = match est.observe_at(env, f64::from(signal), Some(at)) {
                     Ok(e) => e,
                     Err(err) => {
                         tracing::warn!(env, error = %err, "observation skipped");
