@@ -34,8 +34,9 @@ use super::UserError;
 use anyhow::Context;
 use common::Config;
 use common::config::PolicySlot;
+use legs::Evaluated;
 use pipeline::Pipeline;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
@@ -54,6 +55,11 @@ pub struct ReproduceArgs {
     /// report every number as mean ± 95 % CI.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..=20))]
     pub seeds: u64,
+    /// The output directory of another finished `reproduce --seeds N` over the same seeds
+    /// (e.g. the truth-pose pipeline's, beside an IMU one): the report over seeds puts each of
+    /// its numbers beside this run's.
+    #[arg(long)]
+    pub beside: Option<PathBuf>,
 }
 
 pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
@@ -66,14 +72,22 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     }
+    let seeds: Vec<u64> = (0..args.seeds)
+        .map(|k| base.run.seed.wrapping_add(k))
+        .collect();
+    let beside = args
+        .beside
+        .as_deref()
+        .map(|dir| finished_runs(dir, &seeds))
+        .transpose()?;
     let mut runs = Vec::new();
-    for k in 0..args.seeds {
+    for &seed in &seeds {
         let mut cfg = base.clone();
-        cfg.run.seed = base.run.seed.wrapping_add(k);
+        cfg.run.seed = seed;
         let dir = if args.seeds == 1 {
             out.clone()
         } else {
-            out.join(format!("seed-{}", cfg.run.seed))
+            out.join(format!("seed-{seed}"))
         };
         std::fs::create_dir_all(&dir)
             .with_context(|| format!("cannot create {}", dir.display()))?;
@@ -87,11 +101,44 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
     }
     if args.seeds > 1 {
         let path = out.join("report.md");
-        std::fs::write(&path, report::seeds_report(&runs)?)
+        std::fs::write(&path, report::seeds_report(&runs, beside.as_deref())?)
             .with_context(|| format!("cannot write {}", path.display()))?;
         println!("report over {} seeds: {}", args.seeds, path.display());
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The finished pipelines of `seeds` in `dir`, a `reproduce --seeds N` output directory.
+fn finished_runs(dir: &Path, seeds: &[u64]) -> anyhow::Result<Vec<(Pipeline, Vec<Evaluated>)>> {
+    if seeds.len() < 2 {
+        return Err(UserError(
+            "--beside needs --seeds 2 or more: only the report over seeds sets runs side by side"
+                .into(),
+        )
+        .into());
+    }
+    seeds
+        .iter()
+        .map(|seed| {
+            let out = dir.join(format!("seed-{seed}"));
+            let missing = UserError(format!(
+                "--beside {}: {} has no finished pipeline of seed {seed}",
+                dir.display(),
+                out.display()
+            ));
+            let config = out.join(common::run_dir::CONFIG_TOML);
+            if !config.is_file() {
+                return Err(missing.into());
+            }
+            let p = Pipeline {
+                base: Config::load(&config)?,
+                out,
+                quiet: true,
+            };
+            let cells = pipeline::evaluated_before(&p)?.ok_or(missing)?;
+            Ok((p, cells))
+        })
+        .collect()
 }
 
 /// The table row of `claim` in the Markdown `md`, for tests of the reports.

@@ -29,6 +29,27 @@ impl Pipeline {
     }
 }
 
+/// Where stage f keeps its cells.
+const CELLS_JSON: &str = "cells.json";
+
+/// Stage f's cells, if it finished.
+pub(super) fn evaluated_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Evaluated>>> {
+    if !p.done("f-eval") {
+        return Ok(None);
+    }
+    let eval = p.stage_dir("f-eval");
+    let path = eval.join(CELLS_JSON);
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    serde_json::from_str(&text).map(Some).with_context(|| {
+        format!(
+            "{} is not stage f's legs (an older lavatube's?): remove {} to evaluate again",
+            path.display(),
+            eval.display()
+        )
+    })
+}
+
 /// One seed's pipeline, stages a–g in `p.out`.
 pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let base = &p.base;
@@ -108,15 +129,9 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     }
 
     let eval = p.stage_dir("f-eval");
-    let cells_path = eval.join("cells.json");
-    let cells: Vec<Evaluated> = if p.done("f-eval") {
-        serde_json::from_str(&std::fs::read_to_string(&cells_path)?).with_context(|| {
-            format!(
-                "{} is not stage f's legs (an older lavatube's?): remove {} to evaluate again",
-                cells_path.display(),
-                eval.display()
-            )
-        })?
+    let cells_path = eval.join(CELLS_JSON);
+    let cells: Vec<Evaluated> = if let Some(cells) = evaluated_before(p)? {
+        cells
     } else {
         std::fs::create_dir_all(p.fresh("f-eval")?)?;
         let mut cells = Vec::new();

@@ -32,51 +32,35 @@ fn pm(xs: &[f64], digits: usize) -> String {
     format!("{m:.digits$} ± {h:.digits$}")
 }
 
-/// The report over several seeds: every number as mean ± 95 % CI.
-pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Result<String> {
-    let mut md = format!(
-        "# lavatube reproduce over {} seeds\n\n\
-         Every number is the mean over seeds ± the half-width of its 95 % confidence interval \
-         (Student's t); each seed's own report is in `seed-<seed>/report.md`.\n\n\
-         ## Table 1\n\n\
-         | model | area | success % | reach s (mean) | paper: success % |\n\
-         |---|---|---:|---:|---:|\n",
-        runs.len()
-    );
-    let Some((_, first)) = runs.first() else {
-        return Ok(md);
-    };
-    for (i, Evaluated { model, area, .. }) in first.iter().enumerate() {
-        let cells: Vec<Cell> = runs
-            .iter()
-            .filter_map(|(p, c)| {
-                c.get(i)
-                    .map(|c| Cell::of(&c.legs, p.base.sim.decision_dt()))
-            })
-            .collect();
-        let success: Vec<f64> = cells.iter().map(super::legs::Cell::success_pct).collect();
-        let reach: Vec<f64> = cells
-            .iter()
-            .filter(|c| c.successes > 0)
-            .map(|c| c.mean_reach_s)
-            .collect();
-        let paper = paper_cell(model, *area).map_or("-".into(), |(s, _, _)| format!("{s:.1}"));
-        md += &format!(
-            "| {model} | {} | {} | {} | {paper} |\n",
-            area.name(),
-            pm(&success, 1),
-            if reach.is_empty() {
-                "-".into()
-            } else {
-                pm(&reach, 2)
-            }
-        );
-    }
-    md += &format!(
-        "\n{SHAPE_CHECKS_HEADING}\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |\n|---|---:|---:|---|\n"
-    );
-    let per_seed: Vec<(u64, Vec<Check>)> = runs
+/// Several seeds' runs of the pipeline, each with its evaluated cells.
+pub(super) type Runs = [(Pipeline, Vec<Evaluated>)];
+
+/// Table 1's cell `i` over seeds: success % and mean reach time, each mean ± CI.
+fn table_1_cell(runs: &Runs, i: usize) -> (String, String) {
+    let cells: Vec<Cell> = runs
         .iter()
+        .filter_map(|(p, c)| {
+            c.get(i)
+                .map(|c| Cell::of(&c.legs, p.base.sim.decision_dt()))
+        })
+        .collect();
+    let success: Vec<f64> = cells.iter().map(super::legs::Cell::success_pct).collect();
+    let reach: Vec<f64> = cells
+        .iter()
+        .filter(|c| c.successes > 0)
+        .map(|c| c.mean_reach_s)
+        .collect();
+    let reach = if reach.is_empty() {
+        "-".into()
+    } else {
+        pm(&reach, 2)
+    };
+    (pm(&success, 1), reach)
+}
+
+/// Each seed's claims about Table 1.
+fn checks_per_seed(runs: &Runs) -> Vec<(u64, Vec<Check>)> {
+    runs.iter()
         .map(|(p, cells)| {
             let r = &p.base.reproduce;
             (
@@ -84,7 +68,122 @@ pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
                 checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s)),
             )
         })
+        .collect()
+}
+
+/// The claim `key` over seeds: its success difference and reach-time advantage, each mean ±
+/// CI, and each seed's verdict.
+fn claim_over_seeds(per_seed: &[(u64, Vec<Check>)], key: &str) -> [String; 3] {
+    let of_key: Vec<(u64, &Check)> = per_seed
+        .iter()
+        .filter_map(|(seed, cs)| cs.iter().find(|c| c.key == key).map(|c| (*seed, c)))
         .collect();
+    let d: Vec<f64> = of_key.iter().map(|(_, c)| c.paired.difference.0).collect();
+    let faster: Vec<f64> = of_key
+        .iter()
+        .filter(|(_, c)| c.paired.reached_by_both > 0)
+        .map(|(_, c)| c.paired.faster.0)
+        .collect();
+    let verdicts: Vec<String> = of_key
+        .iter()
+        .map(|(seed, c)| {
+            let versus = if c.claim == key {
+                String::new()
+            } else {
+                format!(" ({})", c.claim)
+            };
+            format!("seed {seed}: {}{versus}", c.verdict)
+        })
+        .collect();
+    [
+        pm(&d, 1),
+        if faster.is_empty() {
+            "-".into()
+        } else {
+            pm(&faster, 2)
+        },
+        verdicts.join("; "),
+    ]
+}
+
+/// Table 3 over seeds: each window's accuracy %, mean ± CI.
+fn table_3(runs: &Runs) -> anyhow::Result<std::collections::BTreeMap<u64, String>> {
+    let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> =
+        std::collections::BTreeMap::default();
+    for (p, _) in runs {
+        let path = p.stage_dir("d-analysis").join("results.json");
+        let json: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(&path)
+                .with_context(|| format!("cannot read {}", path.display()))?,
+        )?;
+        for w in json["windows"].as_array().into_iter().flatten() {
+            if let (Some(win), Some(acc)) = (w["window"].as_u64(), w["accuracy"].as_f64()) {
+                by_window.entry(win).or_default().push(100.0 * acc);
+            }
+        }
+    }
+    Ok(by_window
+        .into_iter()
+        .map(|(w, accs)| (w, pm(&accs, 2)))
+        .collect())
+}
+
+/// The report over several seeds: every number as mean ± 95 % CI. With `beside` (another
+/// pipeline's runs over the same seeds, `--beside`), each of its numbers is beside ours.
+pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result<String> {
+    // The header cells and the alignment row of `titles`, beside ours, when there are any.
+    let extra = |titles: &[&str], rule: &str| match beside {
+        None => (String::new(), String::new()),
+        Some(_) => (
+            titles.iter().map(|t| format!(" beside: {t} |")).collect(),
+            rule.repeat(titles.len()),
+        ),
+    };
+    let (head, rule) = extra(&["success %", "reach s (mean)"], "---:|");
+    let mut md = format!(
+        "# lavatube reproduce over {} seeds\n\n\
+         Every number is the mean over seeds ± the half-width of its 95 % confidence interval \
+         (Student's t); each seed's own report is in `seed-<seed>/report.md`.{}\n\n\
+         ## Table 1\n\n\
+         | model | area | success % | reach s (mean) |{head} paper: success % |\n\
+         |---|---|---:|---:|{rule}---:|\n",
+        runs.len(),
+        beside
+            .and_then(|b| b.first())
+            .map_or(String::new(), |(p, _)| format!(
+                " Columns headed \"beside\" are the pipeline in `{}` over the same seeds.",
+                p.out.parent().unwrap_or(&p.out).display()
+            )),
+    );
+    let Some((_, first)) = runs.first() else {
+        return Ok(md);
+    };
+    for (i, Evaluated { model, area, .. }) in first.iter().enumerate() {
+        let (success, reach) = table_1_cell(runs, i);
+        let theirs = beside.map_or(String::new(), |b| {
+            let (s, r) = table_1_cell(b, i);
+            format!(" {s} | {r} |")
+        });
+        let paper = paper_cell(model, *area).map_or("-".into(), |(s, _, _)| format!("{s:.1}"));
+        md += &format!(
+            "| {model} | {} | {success} | {reach} |{theirs} {paper} |\n",
+            area.name()
+        );
+    }
+    let (head, _) = extra(
+        &[
+            "success difference, pp",
+            "reach-time advantage, s",
+            "holds, per seed",
+        ],
+        "",
+    );
+    let rule = beside.map_or("", |_| "---:|---:|---|");
+    md += &format!(
+        "\n{SHAPE_CHECKS_HEADING}\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |{head}\n|---|---:|---:|---|{rule}\n"
+    );
+    let per_seed = checks_per_seed(runs);
+    let theirs = beside.map(checks_per_seed);
     for key in per_seed
         .first()
         .map(|(_, c)| c)
@@ -92,37 +191,11 @@ pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
         .flatten()
         .map(|c| &c.key)
     {
-        let of_key: Vec<(u64, &Check)> = per_seed
-            .iter()
-            .filter_map(|(seed, cs)| cs.iter().find(|c| &c.key == key).map(|c| (*seed, c)))
-            .collect();
-        let d: Vec<f64> = of_key.iter().map(|(_, c)| c.paired.difference.0).collect();
-        let faster: Vec<f64> = of_key
-            .iter()
-            .filter(|(_, c)| c.paired.reached_by_both > 0)
-            .map(|(_, c)| c.paired.faster.0)
-            .collect();
-        let verdicts: Vec<String> = of_key
-            .iter()
-            .map(|(seed, c)| {
-                let versus = if c.claim == *key {
-                    String::new()
-                } else {
-                    format!(" ({})", c.claim)
-                };
-                format!("seed {seed}: {}{versus}", c.verdict)
-            })
-            .collect();
-        md += &format!(
-            "| {key} | {} | {} | {} |\n",
-            pm(&d, 1),
-            if faster.is_empty() {
-                "-".into()
-            } else {
-                pm(&faster, 2)
-            },
-            verdicts.join("; ")
-        );
+        let [d, faster, verdicts] = claim_over_seeds(&per_seed, key);
+        let beside_cols = theirs.as_ref().map_or(String::new(), |t| {
+            format!(" {} |", claim_over_seeds(t, key).join(" | "))
+        });
+        md += &format!("| {key} | {d} | {faster} | {verdicts} |{beside_cols}\n");
     }
     let mut chosen = String::new();
     // None without `specialist-candidates`, whatever an earlier config left in `e-select`.
@@ -142,28 +215,20 @@ pub(super) fn seeds_report(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
             "\n{SELECTION_HEADING}\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
         );
     }
-    md +=
-        "\n## Table 3: accuracy by window\n\n| window | accuracy % | paper % |\n|---:|---:|---:|\n";
-    let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> =
-        std::collections::BTreeMap::default();
-    for (p, _) in runs {
-        let path = p.stage_dir("d-analysis").join("results.json");
-        let json: serde_json::Value = serde_json::from_str(
-            &std::fs::read_to_string(&path)
-                .with_context(|| format!("cannot read {}", path.display()))?,
-        )?;
-        for w in json["windows"].as_array().into_iter().flatten() {
-            if let (Some(win), Some(acc)) = (w["window"].as_u64(), w["accuracy"].as_f64()) {
-                by_window.entry(win).or_default().push(100.0 * acc);
-            }
-        }
-    }
-    for (w, accs) in by_window {
+    let (head, rule) = extra(&["accuracy %"], "---:|");
+    md += &format!(
+        "\n## Table 3: accuracy by window\n\n| window | accuracy % |{head} paper % |\n|---:|---:|{rule}---:|\n"
+    );
+    let theirs = beside.map(table_3).transpose()?;
+    for (w, acc) in table_3(runs)? {
         let paper = PAPER_TABLE_3
             .iter()
             .find(|(pw, _)| *pw == w)
             .map_or("-".into(), |(_, a)| format!("{a:.2}"));
-        md += &format!("| {w} | {} | {paper} |\n", pm(&accs, 2));
+        let beside_col = theirs.as_ref().map_or(String::new(), |t| {
+            format!(" {} |", t.get(&w).map_or("-", String::as_str))
+        });
+        md += &format!("| {w} | {acc} |{beside_col} {paper} |\n");
     }
     Ok(md)
 }
@@ -333,7 +398,7 @@ mod tests {
             };
             (p, cells)
         };
-        let md = seeds_report(&[run(1, 40), run(2, 34)]).expect("report");
+        let md = seeds_report(&[run(1, 40), run(2, 34)], None).expect("report");
         let row = row_of(&md, "switching ≥ the best single model on rough");
         // Seed 1: like RTM, 0 s; seed 2: 0.1 s behind FTM on every leg; t(1) = 12.706.
         assert!(row.contains("| 0.0 ± 0.0 | -0.05 ± 0.64 |"), "{row}");
@@ -345,5 +410,34 @@ mod tests {
         );
         assert!(row_of(&md, "RTM ≥ general on rough").ends_with("| seed 1: yes; seed 2: yes |"));
         assert!(row_of(&md, "70").contains("97.00"), "{md}");
+        // Beside another pipeline over the same seeds, in which FTM drove rough ground as
+        // the general model did: its numbers follow ours in each row.
+        let theirs = [run(1, 40), run(2, 40)];
+        let md = seeds_report(&[run(1, 40), run(2, 34)], Some(&theirs)).expect("report");
+        let ftm = md
+            .lines()
+            .find(|l| l.starts_with("| FTM | rough |"))
+            .expect("FTM row");
+        assert!(
+            ftm.ends_with("| 100.0 ± 0.0 | 4.00 ± 0.00 | 76.0 |"),
+            "{ftm}"
+        );
+        let row = row_of(&md, "switching ≥ the best single model on rough");
+        assert!(
+            row.ends_with(
+                "| seed 1: yes (switching ≥ RTM on rough); seed 2: yes (switching ≥ RTM on rough) |"
+            ),
+            "{row}"
+        );
+        assert_eq!(
+            row_of(&md, "70"),
+            "| 70 | 97.00 ± 0.00 | 97.00 ± 0.00 | 98.79 |"
+        );
+        assert!(
+            md.contains(
+                "| window | accuracy % | beside: accuracy % | paper % |\n|---:|---:|---:|---:|"
+            ),
+            "{md}"
+        );
     }
 }
