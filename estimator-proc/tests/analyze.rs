@@ -57,6 +57,18 @@ fn write_traces(dir: &Path) -> PathBuf {
     path
 }
 
+/// `estimator-proc analyze TRACES --out OUT` with `args`, in process; its results.json.
+fn analyze(traces: &Path, out: &Path, args: &[&str]) -> serde_json::Value {
+    let argv = ["estimator-proc", "analyze", traces.to_str().expect("utf8")]
+        .into_iter()
+        .chain(args.iter().copied())
+        .chain(["--out", out.to_str().expect("utf8")]);
+    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
+    estimator_proc::run(cli).expect("analysis");
+    let text = std::fs::read_to_string(out.join("results.json")).expect("json");
+    serde_json::from_str(&text).expect("valid json")
+}
+
 fn finite_numbers(v: &serde_json::Value) -> Vec<f64> {
     v.as_array()
         .expect("array")
@@ -71,21 +83,7 @@ fn analyze_writes_results_table_and_four_figures() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let traces = write_traces(tmp.path());
     let out = tmp.path().join("report");
-    let args = [
-        "estimator-proc",
-        "analyze",
-        traces.to_str().expect("utf8"),
-        "--windows",
-        "70,10,20,40",
-        "--out",
-        out.to_str().expect("utf8"),
-    ];
-    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(args).expect("args");
-    estimator_proc::run(cli).expect("analysis");
-
-    let json: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
-            .expect("valid json");
+    let json = analyze(&traces, &out, &["--windows", "70,10,20,40"]);
     assert_eq!(json["series"]["flat"], 3);
     assert_eq!(json["warmup_ticks"], 100);
     let windows = json["windows"].as_array().expect("windows");
@@ -215,28 +213,13 @@ fn the_binary_exits_1_with_one_line_on_bad_input() {
 fn one_recording_is_scored_on_the_true_and_on_the_imu_pitch() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let traces = write_traces(tmp.path());
-    let analyze = |signal: &str| {
+    let means = |signal: &str| {
         let out = tmp.path().join(signal);
-        let args = [
-            "estimator-proc",
-            "analyze",
-            traces.to_str().expect("utf8"),
-            "--windows",
-            "70",
-            "--signal",
-            signal,
-            "--out",
-            out.to_str().expect("utf8"),
-        ];
-        let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(args).expect("args");
-        estimator_proc::run(cli).expect("analysis");
-        let json: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(out.join("results.json")).expect("json"))
-                .expect("valid json");
+        let json = analyze(&traces, &out, &["--windows", "70", "--signal", signal]);
         assert_eq!(json["signal"], signal);
         finite_numbers(&json["windows"][0]["means"])
     };
-    let (truth, imu) = (analyze("truth"), analyze("imu"));
+    let (truth, imu) = (means("truth"), means("imu"));
     // The IMU's columns carry extra noise: every window's std, and so each mean, is larger.
     assert!(imu[0] > truth[0] && imu[1] > truth[1], "{truth:?} {imu:?}");
 }
