@@ -2,8 +2,11 @@
 # Which IMU error costs the terrain estimator most: stage c of a finished IMU pipeline
 # (`lavatube reproduce --config configs/paper-imu.toml`) driven again by its general model,
 # once with every error of `[sim.imu]`, once with none, and once with each error term set to
-# zero in turn; each collection analysed as stage d does (Table 3 on the IMU's sin θx).
-# Prints one line per variant: the accuracy % at each window.
+# zero in turn. Each collection is analysed as stage d does, on the IMU's sin θx, and again
+# on the true sin θx of the same recording, so the IMU's cost is measured on the very same
+# trajectories (each variant drives its own: the policy observes the IMU too).
+# Prints per variant and window: accuracy % on the IMU's signal, on the truth's, and the
+# difference in percentage points.
 #
 #   scripts/imu-ablation.sh SEED_DIR [OUT]    # SEED_DIR: e.g. reproduce/seed-1
 set -euo pipefail
@@ -39,9 +42,13 @@ for ((i = 0; i < ${#variants[@]}; i += 2)); do
   printf 'extends = "%s"\n%s\n' "$collect" "${variants[i + 1]}" > "$dir/config.toml"
   "$bin/sim-proc" --config "$dir/config.toml" --controller policy --weights "$policy" \
     --steps "$steps" --telemetry "$dir/traces.csv" > "$dir/sim.log" 2>&1
-  "$bin/estimator-proc" analyze "$dir/traces.csv" --config "$dir/config.toml" \
-    --out "$dir/analysis" > "$dir/analysis.log" 2>&1
-  accuracy=$(grep -oE '"accuracy": *[0-9.]+' "$dir/analysis/results.json" \
-    | grep -oE '[0-9.]+$' | awk '{printf " %.2f", 100 * $1}')
-  echo "$name:$accuracy"
+  for signal in imu truth; do
+    "$bin/estimator-proc" analyze "$dir/traces.csv" --config "$dir/config.toml" \
+      --signal "$signal" --out "$dir/$signal" > "$dir/$signal.log" 2>&1
+    grep -oE '"accuracy": *[0-9.]+' "$dir/$signal/results.json" | grep -oE '[0-9.]+$' \
+      > "$dir/$signal.accuracy"
+  done
+  echo "$name (window: IMU % / truth % / difference pp):$(paste "$dir/imu.accuracy" \
+    "$dir/truth.accuracy" <(grep -oE '"window": *[0-9]+' "$dir/imu/results.json" \
+    | grep -oE '[0-9]+$' | head -n "$(wc -l < "$dir/imu.accuracy")") | awk '{printf "  %d: %.2f / %.2f / %+.2f", $3, 100 * $1, 100 * $2, 100 * ($1 - $2)}')"
 done
