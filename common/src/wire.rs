@@ -260,6 +260,90 @@ pub struct SimHost {
     pub bytes_per_s: f32,
 }
 
+// ---- gym client ↔ sim: `gym/act`, `gym/step` (`sim.acting = "external"`) ------------------
+
+/// [`GymStepHeader::command`] of the sim's first message, before any request: it is ready.
+/// (`gym/step` keeps its newest message for a client that connects later, so a new client
+/// reads the envs and the action limit from whatever the sim sent last.)
+pub const GYM_READY: u32 = 0;
+/// [`GymActHeader::command`]: step every env with the slice's actions.
+pub const GYM_STEP: u32 = 1;
+/// [`GymActHeader::command`]: start every env's episode over (seeded with [`GYM_SEEDED`]).
+pub const GYM_RESET: u32 = 2;
+/// [`GymActHeader::command`]: the client leaves.
+pub const GYM_CLOSE: u32 = 3;
+/// [`GymActHeader::flags`] bit: rebuild every env from [`GymActHeader::seed`].
+pub const GYM_SEEDED: u32 = 1;
+/// [`GymStepHeader::status`]: the request was carried out.
+pub const GYM_OK: u32 = 0;
+/// [`GymStepHeader::status`]: the request was refused (the sim's log says why); nothing moved.
+pub const GYM_REFUSED: u32 = 1;
+
+/// A gym client's request. For [`GYM_STEP`] the slice holds `envs × ACT_DIM` wheel
+/// commands in `[env][wheel]` order (left, right), rad/s; otherwise it is empty.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.GymActHeader.v1")]
+pub struct GymActHeader {
+    /// The client's number for this request; the answer carries it back.
+    pub request: u64,
+    /// The seed of a [`GYM_RESET`] with [`GYM_SEEDED`].
+    pub seed: u64,
+    /// [`GYM_STEP`], [`GYM_RESET`] or [`GYM_CLOSE`].
+    pub command: u32,
+    /// Bits [`GYM_SEEDED`].
+    pub flags: u32,
+}
+
+/// The sim's answer to a [`GymActHeader`], or its [`GYM_READY`]: the slice holds one
+/// [`GymEnvStep`] per env after a reset or a step (none otherwise).
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.GymStepHeader.v1")]
+pub struct GymStepHeader {
+    /// The request answered.
+    pub request: u64,
+    /// Decision steps since the client's last reset.
+    pub tick: u64,
+    /// Env steps the sim has taken in this run (ticks × envs).
+    pub env_steps: u64,
+    pub envs: u32,
+    /// The command answered.
+    pub command: u32,
+    /// [`GYM_OK`] or [`GYM_REFUSED`].
+    pub status: u32,
+    /// The bound of every wheel command, rad/s (SPEC S2's action space is ± this).
+    pub action_limit: f32,
+}
+
+/// One env after a reset or a step. An episode that ended in the step has already been
+/// replaced by the next one (Gymnasium's same-step autoreset): `obs` is the new episode's
+/// first observation and `final_obs` the ended one's last.
+#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
+#[repr(C)]
+#[type_name("lavatube.GymEnvStep.v1")]
+pub struct GymEnvStep {
+    /// SPEC S5's observation.
+    pub obs: [f32; OBS_DIM],
+    /// The last observation of the episode that ended in this step (zeros otherwise, and
+    /// after a physics fault).
+    pub final_obs: [f32; OBS_DIM],
+    /// SPEC S4's reward of the step (0 after a reset).
+    pub reward: f32,
+    /// Decision steps of the episode the step belonged to, this one included.
+    pub episode_steps: u32,
+    /// 1 when the episode ended in a terminal state (target reached, too far from it, tipped
+    /// over, left the area, stalled).
+    pub terminated: u8,
+    /// 1 when the episode was cut short (time limit, physics fault): bootstrap its value.
+    pub truncated: u8,
+    /// 1 when the episode ended at its target.
+    pub success: u8,
+    /// The ground under the robot: 0 flat, 1 rough.
+    pub area: u8,
+    pub env: u32,
+}
+
 // ---- `lavatube swap-learner` → launcher: `swap` (request-response) --------------------------
 
 /// Bytes of a path in a [`SwapRequest`].
@@ -513,5 +597,27 @@ mod tests {
             "{MSG}"
         );
         assert_eq!(offset_of!(TerrainEstimate, posterior), 8, "{MSG}");
+    }
+
+    #[test]
+    fn gym_layouts() {
+        assert_eq!(
+            (size_of::<GymActHeader>(), align_of::<GymActHeader>()),
+            (24, 8),
+            "{MSG}"
+        );
+        assert_eq!(
+            (size_of::<GymStepHeader>(), align_of::<GymStepHeader>()),
+            (40, 8),
+            "{MSG}"
+        );
+        assert_eq!(
+            (size_of::<GymEnvStep>(), align_of::<GymEnvStep>()),
+            (96, 4),
+            "{MSG}"
+        );
+        assert_eq!(offset_of!(GymEnvStep, reward), 80, "{MSG}");
+        assert_eq!(offset_of!(GymEnvStep, terminated), 88, "{MSG}");
+        assert_eq!(offset_of!(GymEnvStep, env), 92, "{MSG}");
     }
 }

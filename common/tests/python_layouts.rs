@@ -9,8 +9,9 @@ use common::policy::MAX_HIDDEN;
 use common::rollout::Transition;
 use common::wire::{
     CLASS_UNKNOWN, EVENT_FAULT, EVENT_SUCCESS, EVENT_TERMINATED, EVENT_TRUNCATED, EnvTick,
-    HostsHeader, PolicyHeader, RolloutHeader, SWAP_MESSAGE_BYTES, SWAP_PATH_BYTES, SimHost,
-    SwapReply, SwapRequest, TerrainEstimate, TerrainHeader, TickHeader,
+    GYM_CLOSE, GYM_OK, GYM_READY, GYM_REFUSED, GYM_RESET, GYM_SEEDED, GYM_STEP, GymActHeader,
+    GymEnvStep, GymStepHeader, HostsHeader, PolicyHeader, RolloutHeader, SWAP_MESSAGE_BYTES,
+    SWAP_PATH_BYTES, SimHost, SwapReply, SwapRequest, TerrainEstimate, TerrainHeader, TickHeader,
 };
 use common::{ACT_DIM, OBS_DIM};
 use iceoryx2::prelude::ZeroCopySend;
@@ -148,6 +149,32 @@ fn expected() -> Value {
             checkpoint
         }),
         layout!(SwapReply { ok, len, message }),
+        layout!(GymActHeader {
+            request,
+            seed,
+            command,
+            flags
+        }),
+        layout!(GymStepHeader {
+            request,
+            tick,
+            env_steps,
+            envs,
+            command,
+            status,
+            action_limit
+        }),
+        layout!(GymEnvStep {
+            obs,
+            final_obs,
+            reward,
+            episode_steps,
+            terminated,
+            truncated,
+            success,
+            area,
+            env
+        }),
     ]
     .into_iter()
     .collect();
@@ -165,6 +192,13 @@ fn expected() -> Value {
             "SWAP_PATH_BYTES": SWAP_PATH_BYTES,
             "SWAP_MESSAGE_BYTES": SWAP_MESSAGE_BYTES,
             "CONTROL_SHUTDOWN": CONTROL_SHUTDOWN,
+            "GYM_READY": GYM_READY,
+            "GYM_STEP": GYM_STEP,
+            "GYM_RESET": GYM_RESET,
+            "GYM_CLOSE": GYM_CLOSE,
+            "GYM_SEEDED": GYM_SEEDED,
+            "GYM_OK": GYM_OK,
+            "GYM_REFUSED": GYM_REFUSED,
         },
     })
 }

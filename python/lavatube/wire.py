@@ -155,6 +155,47 @@ class SwapReply(Wire):
     _fields_ = [("ok", u32), ("len", u32), ("message", u8 * SWAP_MESSAGE_BYTES)]
 
 
+# ---- gym client ↔ sim: `gym/act`, `gym/step` (`sim.acting = "external"`) --------------------
+
+#: `GymStepHeader.command` of the sim's first message, sent before any request.
+GYM_READY = 0
+#: `GymActHeader.command`: step every env; start every episode over; leave.
+GYM_STEP = 1
+GYM_RESET = 2
+GYM_CLOSE = 3
+#: `GymActHeader.flags` bit: a reset rebuilds every env from `seed`.
+GYM_SEEDED = 1
+#: `GymStepHeader.status`: carried out, or refused (the sim's log says why).
+GYM_OK = 0
+GYM_REFUSED = 1
+
+
+class GymActHeader(Wire):
+    """A gym client's request; a step's slice holds envs × ACT_DIM wheel commands (f32)."""
+
+    TYPE_NAME = "lavatube.GymActHeader.v1"
+    _fields_ = [("request", u64), ("seed", u64), ("command", u32), ("flags", u32)]
+
+
+class GymStepHeader(Wire):
+    """The sim's answer to a request (or its GYM_READY): a GymEnvStep per env after a reset or
+    a step."""
+
+    TYPE_NAME = "lavatube.GymStepHeader.v1"
+    _fields_ = [("request", u64), ("tick", u64), ("env_steps", u64), ("envs", u32),
+                ("command", u32), ("status", u32), ("action_limit", f32)]
+
+
+class GymEnvStep(Wire):
+    """One env after a reset or a step, an ended episode already replaced by the next."""
+
+    TYPE_NAME = "lavatube.GymEnvStep.v1"
+    _fields_ = [("obs", f32 * OBS_DIM), ("final_obs", f32 * OBS_DIM), ("reward", f32),
+                ("episode_steps", u32), ("terminated", u8), ("truncated", u8), ("success", u8),
+                ("area", u8), ("env", u32)]
+
+
 #: Every message type, for layout checks.
 ALL = (RolloutHeader, Transition, PolicyHeader, TickHeader, EnvTick, TerrainHeader,
-       TerrainEstimate, HostsHeader, SimHost, SwapRequest, SwapReply)
+       TerrainEstimate, HostsHeader, SimHost, SwapRequest, SwapReply, GymActHeader,
+       GymStepHeader, GymEnvStep)

@@ -26,11 +26,18 @@ Run = namedtuple("Run", "id proc dir")
 
 
 @pytest.fixture
-def run(tmp_path):
+def bin_dir():
+    """The directory of the built binaries (`lavatube`, `sim-proc`, …)."""
+    found = Path(os.environ.get("LAVATUBE_BIN_DIR", ROOT / "target" / "debug"))
+    if not (found / "lavatube").is_file():
+        pytest.skip(f"no launcher in {found}: build the workspace or set LAVATUBE_BIN_DIR")
+    return found
+
+
+@pytest.fixture
+def run(tmp_path, bin_dir):
     """A smoke run writing under tmp_path; the launcher is stopped at the end if still up."""
-    launcher = Path(os.environ.get("LAVATUBE_BIN_DIR", ROOT / "target" / "debug")) / "lavatube"
-    if not launcher.is_file():
-        pytest.skip(f"no launcher at {launcher}: build the workspace or set LAVATUBE_BIN_DIR")
+    launcher = bin_dir / "lavatube"
     # `run.out-dir` is relative to the working directory: point it at tmp_path instead.
     config, n = re.subn(r"(?m)^out-dir = .*$", f"out-dir = {json.dumps(str(tmp_path))}",
                         (ROOT / "configs" / "smoke.toml").read_text())

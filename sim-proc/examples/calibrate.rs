@@ -49,7 +49,7 @@ fn main() -> anyhow::Result<()> {
         let mut fleet = Fleet::new(&sim, &terrain, cfg.run.seed);
         let mut ctrl = GoToController::new(sim.robot.action_limit);
         let mut series = vec![Vec::new(); fleet.len()];
-        let summary = drive(&mut fleet, &mut ctrl, ticks, |row| {
+        let summary = drive(&mut fleet, &mut ctrl, ticks, |row, _| {
             series[row.env as usize].push(row.sin_pitch);
             Ok(())
         })?;

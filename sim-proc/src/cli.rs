@@ -2,8 +2,10 @@
 //! ([`serve`](crate::serve::serve)) or to the standalone one ([`standalone`](crate::standalone)).
 
 use crate::SimError;
-use crate::controllers::{Controller, GoToController, PolicyController, RandomController};
-use crate::standalone::Summary;
+use crate::controllers::{
+    Controller, GoToController, PolicyController, RandomController, ReplayController,
+};
+use crate::standalone::{Outputs, Summary};
 use anyhow::Context;
 use clap::Parser;
 use common::{ACT_DIM, Config, OBS_DIM, Policy};
@@ -19,6 +21,8 @@ pub enum ControllerKind {
     Goto,
     /// A trained policy from `--weights` (mean action).
     Policy,
+    /// Wheel commands from `--actions`, e.g. a gym client's, replayed exactly.
+    Replay,
 }
 
 /// Command-line arguments of `sim-proc`.
@@ -43,6 +47,10 @@ pub struct Args {
     /// of acting with its mean.
     #[arg(long, requires = "weights")]
     pub sample: bool,
+    /// Wheel commands for `--controller replay`: a CSV `tick,env,left,right`, one row per env
+    /// and tick, in that order.
+    #[arg(long, required_if_eq("controller", "replay"))]
+    pub actions: Option<PathBuf>,
     /// Decision steps to run (per env).
     #[arg(long, default_value_t = 1000, value_parser = clap::value_parser!(u64).range(1..))]
     pub steps: u64,
@@ -52,6 +60,10 @@ pub struct Args {
     /// Write per-tick telemetry (CSV, one row per env and tick) here; in a run too.
     #[arg(long)]
     pub telemetry: Option<PathBuf>,
+    /// Write each env's observation after each step here (CSV `tick,env,obs_0,…,obs_9`; after
+    /// an ending, the next episode's first).
+    #[arg(long)]
+    pub observations: Option<PathBuf>,
     /// In a run: write every env's thinned path, targets and endings here (`track.csv`, what
     /// the run's map is drawn from).
     #[arg(long, requires = "run_id")]
@@ -65,7 +77,7 @@ pub struct Args {
     pub json: Option<PathBuf>,
     /// Join run ID over shared memory (as the launcher starts it) instead of running alone:
     /// act with the learner's policy and publish rollouts and telemetry.
-    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "sample", "steps", "json"])]
+    #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["controller", "weights", "sample", "actions", "steps", "json", "observations"])]
     pub run_id: Option<String>,
     /// In a run: count env steps on from the newest step count the learners' first
     /// policies carry (their checkpoints'), as `lavatube run --resume` asks.
@@ -97,8 +109,11 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         &cfg,
         controller.as_mut(),
         args.steps,
-        args.telemetry.as_deref(),
-        args.json.as_deref(),
+        Outputs {
+            telemetry: args.telemetry.as_deref(),
+            observations: args.observations.as_deref(),
+            json: args.json.as_deref(),
+        },
     )
 }
 
@@ -108,6 +123,22 @@ fn controller(args: &Args, cfg: &Config) -> anyhow::Result<Box<dyn Controller>> 
     Ok(match args.controller {
         ControllerKind::Random => Box::new(RandomController::new(limit, args.hold, cfg.run.seed)),
         ControllerKind::Goto => Box::new(GoToController::new(limit)),
+        ControllerKind::Replay => {
+            let path = args
+                .actions
+                .as_deref()
+                .context("--controller replay needs --actions")?;
+            let replay = ReplayController::load(path, cfg.sim.num_envs())?;
+            if replay.ticks() < args.steps {
+                anyhow::bail!(
+                    "--steps {} but {} holds {} ticks",
+                    args.steps,
+                    path.display(),
+                    replay.ticks()
+                );
+            }
+            Box::new(replay)
+        }
         ControllerKind::Policy => {
             let path = args
                 .weights

@@ -1,8 +1,11 @@
-//! Controllers that drive envs without a learner: random, go-to-target, and a policy given
-//! as a flat weight vector (evaluated by `common`'s plain-Rust forward; no burn here).
+//! Controllers that drive envs without a learner: random, go-to-target, actions replayed from
+//! a file, and a policy given as a flat weight vector (evaluated by `common`'s plain-Rust
+//! forward; no burn here).
 //! All act from the SPEC S5 observation alone.
 
+use crate::SimError;
 use common::{ACT_DIM, OBS_DIM, Policy, Rng};
+use std::path::Path;
 
 /// Picks one env's wheel commands from its observation.
 pub trait Controller: Send {
@@ -75,6 +78,81 @@ impl Controller for GoToController {
     }
 }
 
+/// Wheel commands read back from a CSV (`tick,env,left,right`, one row per env and tick, in
+/// that order), e.g. what a gym client sent, replayed exactly.
+pub struct ReplayController {
+    actions: Vec<[f32; ACT_DIM]>,
+    envs: usize,
+    /// The next tick of each env.
+    next: Vec<usize>,
+}
+
+impl ReplayController {
+    /// Reads `path` for `envs` envs; an error names the line that is wrong.
+    pub fn load(path: &Path, envs: usize) -> Result<Self, SimError> {
+        let bad = |reason: String| SimError::Actions {
+            path: path.to_path_buf(),
+            reason,
+        };
+        let mut reader = csv::Reader::from_path(path).map_err(|e| bad(e.to_string()))?;
+        let header = reader.headers().map_err(|e| bad(e.to_string()))?;
+        if header != vec!["tick", "env", "left", "right"] {
+            return Err(bad(format!(
+                "header is {header:?}; expected tick,env,left,right"
+            )));
+        }
+        let mut actions = Vec::new();
+        for (i, record) in reader.records().enumerate() {
+            let record = record.map_err(|e| bad(e.to_string()))?;
+            let line = i + 2;
+            let field = |k: usize| record.get(k).unwrap_or_default();
+            let want = (i / envs, i % envs);
+            if (field(0).parse::<usize>(), field(1).parse::<usize>()) != (Ok(want.0), Ok(want.1)) {
+                return Err(bad(format!(
+                    "line {line}: tick {:?} env {:?}, expected tick {} env {} (rows go env by env, tick by tick)",
+                    field(0),
+                    field(1),
+                    want.0,
+                    want.1
+                )));
+            }
+            let wheel = |k: usize| {
+                field(k)
+                    .parse::<f32>()
+                    .map_err(|_| bad(format!("line {line}: {:?} is not a number", field(k))))
+            };
+            actions.push([wheel(2)?, wheel(3)?]);
+        }
+        if actions.is_empty() || actions.len() % envs != 0 {
+            return Err(bad(format!(
+                "{} rows are not whole ticks of {envs} envs",
+                actions.len()
+            )));
+        }
+        Ok(Self {
+            actions,
+            envs,
+            next: vec![0; envs],
+        })
+    }
+
+    /// Ticks the file holds.
+    pub fn ticks(&self) -> u64 {
+        (self.actions.len() / self.envs) as u64
+    }
+}
+
+impl Controller for ReplayController {
+    fn act(&mut self, env: usize, _obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
+        let tick = self.next[env];
+        self.next[env] += 1;
+        self.actions
+            .get(tick * self.envs + env)
+            .copied()
+            .unwrap_or([0.0; ACT_DIM])
+    }
+}
+
 /// A policy network: its mean action (deterministic), or a sample from its Gaussian.
 pub struct PolicyController {
     pub policy: Policy,
@@ -123,6 +201,38 @@ mod tests {
         obs[2] = -0.3; // behind: turn in place, no forward drive
         let [l, r] = c.act(0, &obs);
         assert!((l + r).abs() < 1e-6 && r > 0.0);
+    }
+
+    #[test]
+    fn replayed_actions_come_back_per_env_and_tick_and_bad_files_name_their_line() {
+        let dir = tempfile::tempdir().expect("tmp");
+        let file = |name: &str, text: &str| {
+            let p = dir.path().join(name);
+            std::fs::write(&p, text).expect("write");
+            p
+        };
+        let good = file(
+            "a.csv",
+            "tick,env,left,right\n0,0,1.5,-2\n0,1,0.25,3\n1,0,NaN,0\n1,1,-1,1\n",
+        );
+        let mut c = ReplayController::load(&good, 2).expect("valid");
+        let obs = [0.0; OBS_DIM];
+        assert_eq!(c.ticks(), 2);
+        assert_eq!(c.act(0, &obs), [1.5, -2.0]);
+        assert_eq!(c.act(1, &obs), [0.25, 3.0]);
+        assert!(c.act(0, &obs)[0].is_nan());
+        assert_eq!(c.act(1, &obs), [-1.0, 1.0]);
+        assert_eq!(c.act(1, &obs), [0.0, 0.0], "past the file's end");
+        let err = |name, text| {
+            ReplayController::load(&file(name, text), 2)
+                .err()
+                .expect("refused")
+                .to_string()
+        };
+        assert!(err("order.csv", "tick,env,left,right\n0,1,0,0\n").contains("line 2"));
+        assert!(err("nan.csv", "tick,env,left,right\n0,0,x,0\n").contains("\"x\" is not a number"));
+        assert!(err("part.csv", "tick,env,left,right\n0,0,0,0\n").contains("whole ticks"));
+        assert!(err("head.csv", "t,e,l,r\n").contains("expected tick,env,left,right"));
     }
 
     #[test]

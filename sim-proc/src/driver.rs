@@ -59,13 +59,10 @@ impl Driver {
             (self.actions[i], self.logprobs[i], self.acted[i]) = (action, logprob, (slot, version));
         }
         fleet.step(&self.actions, &mut self.infos, &mut self.next_obs);
+        self.count_endings();
         for (i, env) in fleet.envs.iter().enumerate() {
             let info = &self.infos[i];
             let end = info.ending;
-            if let Some(e) = end {
-                self.episodes
-                    .record(e == Ending::Success, u64::from(info.episode_steps));
-            }
             chunk.push(Transition {
                 obs: self.obs[i],
                 action: self.actions[i],
@@ -84,6 +81,31 @@ impl Driver {
             });
         }
         std::mem::swap(&mut self.obs, &mut self.next_obs);
+    }
+
+    /// Steps the fleet with actions chosen outside the sim (a gym client's); the slot that
+    /// acted stays `general` at version 0.
+    pub fn step_with(&mut self, fleet: &mut Fleet, actions: &[[f32; ACT_DIM]]) {
+        self.actions.copy_from_slice(actions);
+        fleet.step(&self.actions, &mut self.infos, &mut self.next_obs);
+        self.count_endings();
+        std::mem::swap(&mut self.obs, &mut self.next_obs);
+    }
+
+    /// Observes the envs again after they were rebuilt or restarted outside a step; the
+    /// episode counts go on.
+    pub fn restart(&mut self, fleet: &Fleet) {
+        fleet.observe(&mut self.obs);
+        self.infos.fill(StepInfo::default());
+    }
+
+    fn count_endings(&mut self) {
+        for info in &self.infos {
+            if let Some(e) = info.ending {
+                self.episodes
+                    .record(e == Ending::Success, u64::from(info.episode_steps));
+            }
+        }
     }
 
     /// Appends each env's bootstrap observation (the chunk's tail, DESIGN §2).

@@ -192,6 +192,20 @@ impl Env {
     }
 
     /// Moves the env into a freshly built world and robot.
+    /// Leaves the current episode unfinished and starts the next one from a random pose in
+    /// the area, drawn as a respawning ending draws it (a gym client's reset).
+    pub fn restart(&mut self) {
+        self.respawn();
+        self.episode_index += 1;
+        self.new_episode();
+    }
+
+    /// A fresh world with the robot at a random pose in the area (SPEC S3).
+    fn respawn(&mut self) {
+        let placed = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
+        self.place(placed);
+    }
+
     fn place(&mut self, (world, robot): (PhysicsWorld, Robot)) {
         (self.world, self.robot) = (world, robot);
         self.placed();
@@ -319,8 +333,7 @@ impl Env {
         let (target, episode_steps) = (self.episode.target, self.episode.steps);
         if let Some(ending) = result.ending {
             if ending.respawns() && self.cfg.task.episodes == EpisodeStart::Chained {
-                let placed = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
-                self.place(placed);
+                self.respawn();
             }
             self.episode_index += 1;
             self.new_episode();

@@ -30,6 +30,11 @@ impl Fleet {
         self.envs.is_empty()
     }
 
+    /// Every env leaves its episode and starts the next from a random pose ([`Env::restart`]).
+    pub fn restart(&mut self) {
+        self.envs.iter_mut().for_each(Env::restart);
+    }
+
     pub fn observe(&self, obs: &mut [[f32; OBS_DIM]]) {
         for (o, e) in obs.iter_mut().zip(&self.envs) {
             *o = e.observe();

@@ -11,8 +11,10 @@ pub mod cli;
 pub mod controllers;
 pub mod driver;
 pub mod env;
+pub mod external;
 pub mod fleet;
 pub mod imu;
+pub mod outputs;
 mod pool;
 pub mod robot;
 pub mod serve;
@@ -36,6 +38,8 @@ pub enum SimError {
     Heightmap(#[from] common::terrain::HeightmapError),
     #[error("policy weights {path}: {reason}")]
     Weights { path: PathBuf, reason: String },
+    #[error("actions {path}: {reason}")]
+    Actions { path: PathBuf, reason: String },
     #[error("telemetry {path}: {reason}")]
     Telemetry { path: PathBuf, reason: String },
     #[error(transparent)]

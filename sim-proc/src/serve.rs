@@ -8,36 +8,33 @@ use crate::Fleet;
 use crate::controllers::PolicyController;
 use crate::driver::Driver;
 use crate::env::SharedTerrain;
+use crate::outputs::TickOutputs;
 use crate::switching::{PolicySet, Switcher};
-use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::terrain::Terrain;
-use crate::track::SimTrack;
 use anyhow::Context;
-use common::config::{LearnMode, PolicySlot};
+use common::config::{Acting, LearnMode, PolicySlot};
 use common::ipc::{self, Bus, Receiver};
 use common::refusals::Refusals;
-use common::wire::{
-    self, EnvTick, PolicyHeader, RolloutHeader, TerrainEstimate, TerrainHeader, TickHeader,
-};
+use common::wire::{PolicyHeader, RolloutHeader};
 use common::{Config, Policy, Transition};
 use std::time::{Duration, Instant};
 
-/// How long to sleep between checks while waiting for a policy.
-const POLL: Duration = Duration::from_millis(100);
+/// How long to sleep between checks while waiting for a policy (or a gym client).
+pub(crate) const POLL: Duration = Duration::from_millis(100);
 /// How often the stepping loop looks for a shutdown and, in async mode, for new policies.
 /// Each look is system calls (the control channel's socket, the signal check); a tick of one
 /// env takes about 0.2 ms, and a look on every one of them cost more than publishing it.
 const LOOK_EVERY: Duration = Duration::from_millis(1);
 
 /// Paces "still waiting" warnings: due once per `every` of waiting.
-struct Nag {
+pub(crate) struct Nag {
     since: Instant,
     next: Duration,
     every: Duration,
 }
 
 impl Nag {
-    fn new(every: Duration) -> Self {
+    pub(crate) fn new(every: Duration) -> Self {
         Self {
             since: Instant::now(),
             next: every,
@@ -46,7 +43,7 @@ impl Nag {
     }
 
     /// Seconds waited so far, when a warning is due.
-    fn due(&mut self) -> Option<u64> {
+    pub(crate) fn due(&mut self) -> Option<u64> {
         let waited = self.since.elapsed();
         (waited >= self.next).then(|| {
             self.next += self.every;
@@ -179,30 +176,24 @@ fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
     h.chunks_seen >= sent || h.learner != learner
 }
 
-/// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request.
+/// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request; with
+/// `sim.acting = "external"` a gym client acts instead ([`crate::external`]).
 pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Result<()> {
-    let (telemetry, resume) = (args.telemetry.as_deref(), args.resume);
+    let bus = Bus::connect(run_id, "sim")?;
+    let mut outputs = TickOutputs::open(&bus, cfg, args)?;
+    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
+    if cfg.sim.acting == Acting::External {
+        return crate::external::serve(cfg, &bus, &mut outputs, &terrain, args.source);
+    }
+    let control = bus.control_listener()?;
+    let resume = args.resume;
     let n = cfg.sim.num_envs();
     let t_steps = cfg.ppo.rollout_steps(n);
-    let bus = Bus::connect(run_id, "sim")?;
-    let control = bus.control_listener()?;
-    let terrain_rx = bus.receiver::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None)?;
     let rollout_tx =
         bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, t_steps * n + n)?;
-    let tele_tx = bus
-        .sender::<EnvTick, TickHeader>(&ipc::TELEMETRY, None, n)?
-        .with_wake_interval(Duration::from_micros(cfg.sim.telemetry_notify_us as u64));
-
-    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
     // DESIGN §9: each sim host steps episodes of its own.
     let seed = common::Rng::source_seed(cfg.run.seed, args.source);
     let mut fleet = Fleet::new(&cfg.sim, &terrain, seed);
-    let mut csv = telemetry.map(TelemetryCsv::append).transpose()?;
-    let mut track = args
-        .track
-        .as_deref()
-        .map(|p| SimTrack::append(p, n))
-        .transpose()?;
     let mut inbox = Inbox::connect(&bus, seed, !cfg.sim.mean_actions)?;
     let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
@@ -219,8 +210,6 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
     tracing::info!(learners = ?inbox.learners(), "first policy received");
 
     let mut driver = Driver::new(&fleet);
-    let mut classes = vec![wire::CLASS_UNKNOWN; n];
-    let mut ticks = vec![EnvTick::default(); n];
     let mut chunk = Vec::with_capacity(t_steps * n + n);
     // Resumed, the run goes on from the steps its learners' checkpoints had learned from
     // (what the sim stepped after them is collected again); chunk ids start over, as they
@@ -232,43 +221,17 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
             "resumed: counting on from the learners' checkpoints"
         );
     }
-    let (mut chunk_id, mut tick) = (0u64, 0u64);
+    let mut chunk_id = 0u64;
     let started = Instant::now();
     let mut looked = started;
     'run: while env_steps < cfg.run.total_steps {
         chunk.clear();
         for _ in 0..t_steps {
-            let wanted = switcher.update(&classes);
+            let wanted = switcher.update(&outputs.classes);
             let policies = inbox.policies.as_mut().context("no policy")?;
-            driver.tick(&mut fleet, policies, wanted, &classes, &mut chunk);
-            if let Some(csv) = csv.as_mut() {
-                for (env, info) in fleet.envs.iter().zip(&driver.infos) {
-                    csv.write(&telemetry_row(env, info))?;
-                }
-            }
-            if let Some(est) = terrain_rx.latest()? {
-                for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
-                    classes[e.env as usize] = e.class;
-                }
-            }
-            driver.env_ticks(&fleet, &mut ticks);
-            if let Some(t) = track.as_mut() {
-                t.see(&fleet.envs, &ticks, &classes);
-            }
+            driver.tick(&mut fleet, policies, wanted, &outputs.classes, &mut chunk);
             env_steps += n as u64;
-            let header = TickHeader {
-                tick,
-                env_steps,
-                policy_version: inbox.version(),
-                envs: n as u32,
-                episodes: driver.episodes.episodes,
-                successes: driver.episodes.successes,
-                sent_ns: wire::monotonic_ns(),
-                reach_ticks: driver.episodes.reach_ticks,
-                reach_ticks_sq: driver.episodes.reach_ticks_sq,
-            };
-            tele_tx.send(header, &ticks)?;
-            tick += 1;
+            outputs.publish(&fleet, &driver, env_steps, inbox.version())?;
             if looked.elapsed() >= LOOK_EVERY {
                 looked = Instant::now();
                 if bus.stop_requested(&control) {
@@ -289,10 +252,7 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
             _reserved: 0,
         };
         rollout_tx.send(header, &chunk)?;
-        tele_tx.flush()?;
-        if let Some(t) = track.as_mut() {
-            t.flush();
-        }
+        outputs.flush()?;
         chunk_id += 1;
         tracing::debug!(
             chunk = chunk_id,
@@ -325,13 +285,7 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
             }
         }
     }
-    tele_tx.flush()?;
-    if let Some(csv) = csv.as_mut() {
-        csv.flush()?;
-    }
-    if let Some(t) = track.as_mut() {
-        t.flush();
-    }
+    outputs.finish()?;
     let secs = started.elapsed().as_secs_f64();
     tracing::info!(
         env_steps,

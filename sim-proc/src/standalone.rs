@@ -38,13 +38,14 @@ pub struct Summary {
     pub faults: u64,
 }
 
-/// Runs `steps` decision steps of every env under `controller`, handing each tick's rows to
-/// `sink`. Returns the episode summary.
+/// Runs `steps` decision steps of every env under `controller`, handing each env's row of
+/// each tick to `sink` with the observation the step left it (the next episode's first after
+/// an ending). Returns the episode summary.
 pub fn drive(
     fleet: &mut Fleet,
     controller: &mut dyn Controller,
     steps: u64,
-    mut sink: impl FnMut(&TelemetryRow) -> anyhow::Result<()>,
+    mut sink: impl FnMut(&TelemetryRow, &[f32; OBS_DIM]) -> anyhow::Result<()>,
 ) -> anyhow::Result<Summary> {
     let n = fleet.len();
     let mut obs = vec![[0.0f32; OBS_DIM]; n];
@@ -59,7 +60,7 @@ pub fn drive(
         fleet.step(&actions, &mut infos, &mut obs);
         for (i, env) in fleet.envs.iter().enumerate() {
             let info = &infos[i];
-            sink(&telemetry_row(env, info))?;
+            sink(&telemetry_row(env, info), &obs[i])?;
             if let Some(end) = info.ending {
                 s.episodes
                     .record(end == Ending::Success, u64::from(info.episode_steps));
@@ -72,27 +73,45 @@ pub fn drive(
     Ok(s)
 }
 
+/// Where the standalone simulator writes what it did.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Outputs<'a> {
+    /// The telemetry CSV (`--telemetry`).
+    pub telemetry: Option<&'a Path>,
+    /// Each env's observation after each step (`--observations`).
+    pub observations: Option<&'a Path>,
+    /// The `--json` result.
+    pub json: Option<&'a Path>,
+}
+
 /// The standalone simulator: build the envs, drive them `steps` decision steps under
-/// `controller`, write the telemetry CSV and the `--json` result where asked.
+/// `controller`, write the files `out` names.
 pub fn run(
     cfg: &Config,
     controller: &mut dyn Controller,
     steps: u64,
-    telemetry: Option<&Path>,
-    json: Option<&Path>,
+    out: Outputs,
 ) -> anyhow::Result<Summary> {
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
     let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
     let started = std::time::Instant::now();
-    let summary = match telemetry {
-        Some(path) => {
-            let mut csv = TelemetryCsv::create(path)?;
-            let s = drive(&mut fleet, controller, steps, |row| csv.write(row))?;
-            csv.flush()?;
-            s
+    let mut csv = out.telemetry.map(TelemetryCsv::create).transpose()?;
+    let mut observations = out.observations.map(ObservationCsv::create).transpose()?;
+    let summary = drive(&mut fleet, controller, steps, |row, obs| {
+        if let Some(csv) = csv.as_mut() {
+            csv.write(row)?;
         }
-        None => drive(&mut fleet, controller, steps, |_| Ok(()))?,
-    };
+        if let Some(o) = observations.as_mut() {
+            o.write(row, obs)?;
+        }
+        Ok(())
+    })?;
+    if let Some(csv) = csv.as_mut() {
+        csv.flush()?;
+    }
+    if let Some(o) = observations.as_mut() {
+        o.flush()?;
+    }
     let secs = started.elapsed().as_secs_f64();
     let decision_steps_per_s = (summary.ticks * fleet.len() as u64) as f64 / secs;
     tracing::info!(
@@ -104,7 +123,7 @@ pub fn run(
         decision_steps_per_s,
         "done"
     );
-    if let Some(path) = json {
+    if let Some(path) = out.json {
         let result = JsonResult {
             envs: fleet.len(),
             ticks: summary.ticks,
@@ -123,6 +142,50 @@ pub fn run(
         std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
     }
     Ok(summary)
+}
+
+/// `--observations`: `tick,env,obs_0,…,obs_9`, one row per env and tick, each value written
+/// so that it reads back to the same f32.
+struct ObservationCsv {
+    path: std::path::PathBuf,
+    out: std::io::BufWriter<std::fs::File>,
+}
+
+impl ObservationCsv {
+    fn create(path: &Path) -> anyhow::Result<Self> {
+        let file = std::fs::File::create(path)
+            .with_context(|| format!("cannot create {}", path.display()))?;
+        let mut o = Self {
+            path: path.to_path_buf(),
+            out: std::io::BufWriter::new(file),
+        };
+        let names: Vec<String> = (0..OBS_DIM).map(|k| format!("obs_{k}")).collect();
+        o.line(format_args!("tick,env,{}", names.join(",")))?;
+        Ok(o)
+    }
+
+    fn write(&mut self, row: &TelemetryRow, obs: &[f32; OBS_DIM]) -> anyhow::Result<()> {
+        let values: Vec<String> = obs.iter().map(f32::to_string).collect();
+        self.line(format_args!(
+            "{},{},{}",
+            row.tick,
+            row.env,
+            values.join(",")
+        ))
+    }
+
+    fn line(&mut self, text: std::fmt::Arguments) -> anyhow::Result<()> {
+        use std::io::Write;
+        writeln!(self.out, "{text}")
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
+
+    fn flush(&mut self) -> anyhow::Result<()> {
+        use std::io::Write;
+        self.out
+            .flush()
+            .with_context(|| format!("cannot write {}", self.path.display()))
+    }
 }
 
 #[cfg(test)]
@@ -149,7 +212,7 @@ mod tests {
         cfg.task.stall_steps = 10;
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
         let mut fleet = Fleet::new(&cfg, &terrain, 2);
-        let s = drive(&mut fleet, &mut Idle, 35, |_| Ok(())).expect("drive");
+        let s = drive(&mut fleet, &mut Idle, 35, |_, _| Ok(())).expect("drive");
         // Each robot stalls at steps 10, 20 and 30 and never reaches a target.
         assert_eq!(
             (s.episodes.episodes, s.stalls, s.episodes.successes),

@@ -152,7 +152,7 @@ fn mean_rolling_std(cfg: &SimConfig, ticks: u64) -> f64 {
     let mut fleet = Fleet::new(cfg, &terrain, 3);
     let mut ctrl = GoToController::new(cfg.robot.action_limit);
     let mut series = vec![Vec::new(); fleet.len()];
-    drive(&mut fleet, &mut ctrl, ticks, |row| {
+    drive(&mut fleet, &mut ctrl, ticks, |row, _| {
         series[row.env as usize].push(row.sin_pitch);
         Ok(())
     })
@@ -199,7 +199,7 @@ fn same_seed_gives_identical_telemetry_whatever_the_thread_count() {
         let mut fleet = Fleet::new(&cfg, &terrain, 5);
         let mut ctrl = RandomController::new(3.0, 7, 5);
         let mut rows = Vec::new();
-        drive(&mut fleet, &mut ctrl, 200, |r| {
+        drive(&mut fleet, &mut ctrl, 200, |r, _| {
             rows.push(format!("{r:?}"));
             Ok(())
         })

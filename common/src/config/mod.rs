@@ -6,6 +6,7 @@
 //! section is a module holding its fields and their checks.
 
 mod estimator;
+mod external;
 mod imu;
 mod model_file;
 mod net;
@@ -22,6 +23,7 @@ mod terrain;
 mod tests;
 
 pub use estimator::{EstimatorConfig, MixtureFeature};
+pub use external::ExternalConfig;
 pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};
 pub use model_file::OfflineMixture;
 pub use net::{MIN_KEY_BYTES, NetConfig};
@@ -126,7 +128,7 @@ impl Config {
     /// against the sim's batch); the sections go in a fixed order, `supervise.grace-ms`
     /// after `[reproduce]`, so a config with several mistakes always reports the same one.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        self.run.validate()?;
+        self.run.validate(self.sim.acting)?;
         self.sim.validate()?;
         self.ppo.validate(self.sim.num_envs())?;
         self.estimator.validate()?;

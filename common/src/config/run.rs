@@ -14,8 +14,9 @@ pub struct RunConfig {
     /// `sync`: the sim waits for the policy learned from each rollout (on-policy PPO);
     /// `async`: the sim never waits. Default `sync`.
     pub mode: LearnMode,
-    /// Total environment steps (decision steps summed over envs) to train for. Default 2.5 M
-    /// (SPEC S6). Range 1 ..= 10^10.
+    /// Total environment steps (decision steps summed over envs) to train for; with
+    /// `sim.acting = "external"` the gym client decides instead. Default 2.5 M (SPEC S6).
+    /// Range 1 ..= 10^10.
     pub total_steps: u64,
     /// Directory under which each run gets `<out-dir>/<run-id>/`. Default `runs`.
     pub out_dir: PathBuf,
@@ -116,6 +117,8 @@ pub enum Acting {
     /// The specialist for the estimator's current class, changed only after the estimate has
     /// held for `switch-dwell` ticks (SPEC S8).
     Switch,
+    /// A gym client sends every env's actions each tick (`sim.external`); no policy acts.
+    External,
 }
 
 impl Acting {
@@ -125,7 +128,7 @@ impl Acting {
             Acting::General => Some(PolicySlot::General),
             Acting::Flat => Some(PolicySlot::Flat),
             Acting::Rough => Some(PolicySlot::Rough),
-            Acting::Switch => None,
+            Acting::Switch | Acting::External => None,
         }
     }
 }
@@ -155,7 +158,8 @@ impl Default for RunConfig {
 }
 
 impl RunConfig {
-    pub(super) fn validate(&self) -> Result<(), ConfigError> {
+    /// Its own fields; `acting` decides whether the run needs a policy slot.
+    pub(super) fn validate(&self, acting: Acting) -> Result<(), ConfigError> {
         if self.total_steps == 0 {
             return Err(invalid(
                 "run.total-steps",
@@ -163,7 +167,15 @@ impl RunConfig {
                 "must be at least 1",
             ));
         }
-        if (self.learners.is_empty() && self.frozen.is_empty())
+        if acting == Acting::External {
+            if !self.learners.is_empty() || !self.frozen.is_empty() {
+                return Err(invalid(
+                    "run.learners",
+                    &self.learners,
+                    "must be [] and run.frozen empty with sim.acting = \"external\": the gym client acts",
+                ));
+            }
+        } else if (self.learners.is_empty() && self.frozen.is_empty())
             || (1..self.learners.len()).any(|i| self.learners[..i].contains(&self.learners[i]))
             || self.learners.iter().any(|s| self.frozen.contains_key(s))
         {
@@ -210,5 +222,24 @@ mod tests {
         let err = parse("[run]\nrecord = \"run.csv\"\n").expect_err("not .rrd");
         assert!(err.to_string().contains("run.record"), "{err}");
         assert!(parse("[run]\nrecord = \"run.rrd\"\n").is_ok());
+    }
+
+    #[test]
+    fn an_external_client_acts_in_a_run_without_learners() {
+        let gym = "[sim]\nacting = \"external\"\n";
+        let err = parse(gym).expect_err("the default general learner");
+        assert!(err.to_string().contains("gym client"), "{err}");
+        let c = parse(&format!("[run]\nlearners = []\n{gym}")).expect("valid");
+        assert_eq!(
+            (c.sim.acting.fixed(), c.sim.external.timeout_s),
+            (None, 30.0)
+        );
+        let err = parse("[run]\nlearners = []\n").expect_err("nobody acts");
+        assert!(err.to_string().contains("at least one slot"), "{err}");
+        let err = parse(&format!(
+            "[run]\nlearners = []\n{gym}[sim.external]\ntimeout-s = 0.0\n"
+        ))
+        .expect_err("no time to answer");
+        assert!(err.to_string().contains("sim.external.timeout-s"), "{err}");
     }
 }

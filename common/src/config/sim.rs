@@ -3,7 +3,8 @@
 
 use super::range::{count_in, in_range, invalid};
 use super::{
-    Acting, AttitudeSource, ConfigError, ImuConfig, RobotConfig, TaskConfig, TerrainConfig,
+    Acting, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, RobotConfig, TaskConfig,
+    TerrainConfig,
 };
 use serde::{Deserialize, Serialize};
 
@@ -70,9 +71,12 @@ pub struct SimConfig {
     pub mixed_envs: usize,
     /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
     pub threads: usize,
-    /// The policy slot the envs act with, or `switch` (DESIGN §5). A slot without a policy
-    /// yet falls back to `general`, then to any slot that has one. Default `general`.
+    /// The policy slot the envs act with, `switch` (DESIGN §5), or `external` (a gym client
+    /// acts; the run has no learners). A slot without a policy yet falls back to `general`,
+    /// then to any slot that has one. Default `general`.
     pub acting: Acting,
+    /// The gym client of `acting = "external"`.
+    pub external: ExternalConfig,
     /// Switching: ticks a new terrain estimate must hold before an env changes policy. 1 ..= 10000. Default 10.
     pub switch_dwell: usize,
     /// Act with each policy's mean action instead of a sample (evaluation; the rollouts'
@@ -106,6 +110,7 @@ impl Default for SimConfig {
             mixed_envs: 0,
             threads: 2,
             acting: Acting::General,
+            external: ExternalConfig::default(),
             switch_dwell: 10,
             mean_actions: false,
             telemetry_notify_us: 1000,
@@ -188,6 +193,7 @@ impl SimConfig {
         count_in("sim.threads", self.threads, 1, 64)?;
         in_range("sim.physics-dt", self.physics_dt, 1e-4, 0.1)?;
         count_in("sim.substeps", self.substeps, 1, 100)?;
+        self.external.validate()?;
         self.terrain.validate()?;
         self.robot.validate()?;
         self.imu.validate()?;

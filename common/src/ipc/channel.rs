@@ -4,8 +4,8 @@
 
 use crate::rollout::Transition;
 use crate::wire::{
-    EnvTick, HostsHeader, PolicyHeader, RolloutHeader, SimHost, TerrainEstimate, TerrainHeader,
-    TickHeader,
+    EnvTick, GymActHeader, GymEnvStep, GymStepHeader, HostsHeader, PolicyHeader, RolloutHeader,
+    SimHost, TerrainEstimate, TerrainHeader, TickHeader,
 };
 use std::fmt;
 use std::marker::PhantomData;
@@ -110,5 +110,26 @@ pub const HOSTS: Channel<SimHost, HostsHeader> = Channel::new(
         history: 1,
         publishers: 1,
         subscribers: 8,
+    },
+);
+/// gym client → sim (`sim.acting = "external"`): a step's actions, a reset or a close.
+pub const GYM_ACT: Channel<f32, GymActHeader> = Channel::new(
+    "gym/act",
+    Capacity {
+        buffer: 4,
+        history: 0,
+        publishers: 2,
+        subscribers: 1,
+    },
+);
+/// sim → gym client: every env after a reset or a step (history 1: a client that connects
+/// reads the envs and the action limit from the newest message).
+pub const GYM_STEP: Channel<GymEnvStep, GymStepHeader> = Channel::new(
+    "gym/step",
+    Capacity {
+        buffer: 4,
+        history: 1,
+        publishers: 1,
+        subscribers: 2,
     },
 );

@@ -14,7 +14,9 @@ mod swap;
 mod tests;
 
 pub use bus::Bus;
-pub use channel::{Capacity, Channel, HOSTS, POLICY, ROLLOUT, TELEMETRY, TERRAIN};
+pub use channel::{
+    Capacity, Channel, GYM_ACT, GYM_STEP, HOSTS, POLICY, ROLLOUT, TELEMETRY, TERRAIN,
+};
 pub use control::{CONTROL_SHUTDOWN, request_shutdown, shutdown_requested};
 pub use files::{NodeInfo, list_nodes, remove_run, run_files, runs_with_files};
 pub use port::{Received, Receiver, Sender};

@@ -1,0 +1,109 @@
+//! What the sim in a run publishes and records every tick, whoever acts (a policy or a gym
+//! client): the `telemetry` service, the telemetry CSV and the track; and the estimator's
+//! classes it reads back from `terrain`.
+
+use crate::Fleet;
+use crate::cli::Args;
+use crate::driver::Driver;
+use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
+use crate::track::SimTrack;
+use common::Config;
+use common::ipc::{self, Bus, Receiver, Sender};
+use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
+use std::time::Duration;
+
+pub struct TickOutputs {
+    tele_tx: Sender<EnvTick, TickHeader>,
+    terrain_rx: Receiver<TerrainEstimate, TerrainHeader>,
+    csv: Option<TelemetryCsv>,
+    track: Option<SimTrack>,
+    /// The estimator's newest class per env (`CLASS_UNKNOWN` before its first estimate).
+    pub classes: Vec<u8>,
+    ticks: Vec<EnvTick>,
+    tick: u64,
+}
+
+impl TickOutputs {
+    /// The run's `telemetry` and `terrain` services, and the files `args` asks for.
+    pub fn open(bus: &Bus, cfg: &Config, args: &Args) -> anyhow::Result<Self> {
+        let n = cfg.sim.num_envs();
+        Ok(Self {
+            tele_tx: bus
+                .sender(&ipc::TELEMETRY, None, n)?
+                .with_wake_interval(Duration::from_micros(cfg.sim.telemetry_notify_us as u64)),
+            terrain_rx: bus.receiver(&ipc::TERRAIN, None)?,
+            csv: args
+                .telemetry
+                .as_deref()
+                .map(TelemetryCsv::append)
+                .transpose()?,
+            track: args
+                .track
+                .as_deref()
+                .map(|p| SimTrack::append(p, n))
+                .transpose()?,
+            classes: vec![wire::CLASS_UNKNOWN; n],
+            ticks: vec![EnvTick::default(); n],
+            tick: 0,
+        })
+    }
+
+    /// After a step of every env: its CSV rows, the estimator's newest classes, its track
+    /// points and its telemetry tick (`env_steps` so far, acting with `policy_version`).
+    pub fn publish(
+        &mut self,
+        fleet: &Fleet,
+        driver: &Driver,
+        env_steps: u64,
+        policy_version: u32,
+    ) -> anyhow::Result<()> {
+        let n = fleet.len();
+        if let Some(csv) = self.csv.as_mut() {
+            for (env, info) in fleet.envs.iter().zip(&driver.infos) {
+                csv.write(&telemetry_row(env, info))?;
+            }
+        }
+        if let Some(est) = self.terrain_rx.latest()? {
+            for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
+                self.classes[e.env as usize] = e.class;
+            }
+        }
+        driver.env_ticks(fleet, &mut self.ticks);
+        if let Some(t) = self.track.as_mut() {
+            t.see(&fleet.envs, &self.ticks, &self.classes);
+        }
+        let header = TickHeader {
+            tick: self.tick,
+            env_steps,
+            policy_version,
+            envs: n as u32,
+            episodes: driver.episodes.episodes,
+            successes: driver.episodes.successes,
+            sent_ns: wire::monotonic_ns(),
+            reach_ticks: driver.episodes.reach_ticks,
+            reach_ticks_sq: driver.episodes.reach_ticks_sq,
+        };
+        self.tele_tx.send(header, &self.ticks)?;
+        self.tick += 1;
+        Ok(())
+    }
+
+    /// Wakes the telemetry readers and writes the track points taken so far: at each rollout
+    /// chunk, and before the sim waits.
+    pub fn flush(&mut self) -> anyhow::Result<()> {
+        self.tele_tx.flush()?;
+        if let Some(t) = self.track.as_mut() {
+            t.flush();
+        }
+        Ok(())
+    }
+
+    /// [`flush`](Self::flush), and the CSV's buffered rows: when the sim ends.
+    pub fn finish(&mut self) -> anyhow::Result<()> {
+        self.flush()?;
+        if let Some(csv) = self.csv.as_mut() {
+            csv.flush()?;
+        }
+        Ok(())
+    }
+}
