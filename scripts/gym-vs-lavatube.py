@@ -11,7 +11,7 @@ on the same config: `configs/default.toml`'s 8 flat envs and PPO settings (SPEC 
 Needs the release binaries (`cargo build --release`) and, in a virtual environment,
 `pip install ./python[gym] stable-baselines3 matplotlib`.
 
-    scripts/gym-vs-lavatube.py [--out DIR] [--steps 300000] [--seeds 3]
+    scripts/gym-vs-lavatube.py [--out DIR] [--steps 300000] [--seeds 3] [--report-only]
 """
 
 import argparse
@@ -129,64 +129,66 @@ def on_grid(curves: list, grid: np.ndarray, column: int) -> np.ndarray:
                      for c in curves])
 
 
-def mean_ci(values) -> str:
+def mean_ci(values, fmt: str = ",.0f") -> str:
     """Mean ± the half-width of its 95 % interval (Student's t) over seeds."""
     values = np.asarray(values, dtype=float)
     if len(values) < 2:
-        return f"{values.mean():.3g}"
+        return f"{values.mean():{fmt}}"
     t = T975.get(len(values) - 1, 1.96)
     half = t * values.std(ddof=1) / np.sqrt(len(values))
-    return f"{values.mean():.3g} ± {half:.2g}"
+    return f"{values.mean():{fmt}} ± {half:{fmt}}"
 
 
-def main():
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--out", type=Path, default=Path("runs/gym-vs-lavatube"))
-    parser.add_argument("--steps", type=int, default=300_000)
-    parser.add_argument("--seeds", type=int, default=3)
-    args = parser.parse_args()
-    out = args.out.resolve()
-    out.mkdir(parents=True, exist_ok=True)
-    seeds = range(1, args.seeds + 1)
-
+def measure(out: Path, steps: int, seeds: int) -> dict:
+    """Every run of the comparison; also written to `out/results.json`."""
     print("gym env, random actions ...", flush=True)
     random = random_steps_per_s(out)
     print("lavatube run, async ...", flush=True)
-    lavatube_async = lavatube_run(out, 1, args.steps, "async")["steps_per_s"]
+    lavatube_async = lavatube_run(out, 1, steps, "async")["steps_per_s"]
     runs = {"lavatube": [], "sb3": []}
-    for seed in seeds:
+    for seed in range(1, seeds + 1):
         print(f"seed {seed}: lavatube's learner (sync) ...", flush=True)
-        runs["lavatube"].append(lavatube_run(out, seed, args.steps, "sync"))
+        runs["lavatube"].append(lavatube_run(out, seed, steps, "sync"))
         print(f"seed {seed}: SB3 PPO on the gym env ...", flush=True)
-        runs["sb3"].append(sb3_run(out, seed, args.steps, runs["lavatube"][-1]["ppo"]))
-    (out / "results.json").write_text(json.dumps(
-        {"random_steps_per_s": random, "lavatube_async_steps_per_s": lavatube_async,
-         "runs": runs}, indent=1))
+        runs["sb3"].append(sb3_run(out, seed, steps, runs["lavatube"][-1]["ppo"]))
+    results = {"steps": steps, "random_steps_per_s": random,
+               "lavatube_async_steps_per_s": lavatube_async, "runs": runs}
+    (out / "results.json").write_text(json.dumps(results, indent=1))
+    return results
 
-    grid = np.linspace(0, args.steps, 61)[1:]
-    tail = grid >= 0.8 * args.steps
-    lines = [f"# Gymnasium + SB3 against lavatube's runtime, {args.seeds} seeds × "
-             f"{args.steps:,} env steps, `configs/default.toml`", "",
-             "| what | env steps/s |", "|---|---:|",
-             f"| gym env, random actions (8 envs) | {random:,.0f} |",
-             f"| `lavatube run`, async | {lavatube_async:,.0f} |",
-             f"| `lavatube run`, sync (the learning runs) | "
-             f"{mean_ci([r['steps_per_s'] for r in runs['lavatube']])} |",
-             f"| SB3 PPO on the gym env (the learning runs) | "
-             f"{mean_ci([r['steps_per_s'] for r in runs['sb3']])} |", "",
-             "| learner | success, last 20 % of steps | mean return, last 20 % | "
-             "steps to 90 % success |", "|---|---:|---:|---:|"]
+
+def report(out: Path, results: dict):
+    """`results.md` and `curves.png` in `out`: throughput, and per learner and seed the
+    success rate and mean return over the last 20 % of the steps and the steps it took to
+    reach 90 % success."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    runs, steps = results["runs"], results["steps"]
+    grid = np.linspace(0, steps, 61)[1:]
+    tail = grid >= 0.8 * steps
+    lines = [f"# Gymnasium + SB3 against lavatube's runtime, {len(runs['sb3'])} seeds × "
+             f"{steps:,} env steps, `configs/default.toml`", "",
+             "| what | env steps/s |", "|---|---:|",
+             f"| gym env, random actions (8 envs) | {results['random_steps_per_s']:,.0f} |",
+             f"| `lavatube run`, async | {results['lavatube_async_steps_per_s']:,.0f} |",
+             f"| `lavatube run`, sync (the learning runs) | "
+             f"{mean_ci([r['steps_per_s'] for r in runs['lavatube']])} |",
+             f"| SB3 PPO on the gym env (the learning runs) | "
+             f"{mean_ci([r['steps_per_s'] for r in runs['sb3']])} |", "",
+             "| learner | seed | success %, last 20 % of steps | mean return, last 20 % | "
+             "env steps to 90 % success |", "|---|---|---:|---:|---:|"]
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     for name, colour in (("lavatube", "tab:red"), ("sb3", "tab:blue")):
         curves = [r["curve"] for r in runs[name]]
         success, ret = on_grid(curves, grid, 1), on_grid(curves, grid, 2)
-        reach = [grid[np.argmax(s >= 0.9)] if (s >= 0.9).any() else np.nan for s in success]
-        lines.append(f"| {name} | {mean_ci(success[:, tail].mean(axis=1))} | "
-                     f"{mean_ci(ret[:, tail].mean(axis=1))} | {mean_ci(reach)} |")
+        late_success, late_return = 100 * success[:, tail].mean(axis=1), ret[:, tail].mean(axis=1)
+        for seed, (s, r, row) in enumerate(zip(late_success, late_return, success), 1):
+            reach = f"{grid[np.argmax(row >= 0.9)]:,.0f}" if (row >= 0.9).any() else "never"
+            lines.append(f"| {name} | {seed} | {s:.1f} | {r:.1f} | {reach} |")
+        lines.append(f"| {name} | mean ± 95 % CI | {mean_ci(late_success, '.1f')} | "
+                     f"{mean_ci(late_return, '.1f')} | |")
         label = {"lavatube": "lavatube's learner", "sb3": "Stable-Baselines3 PPO"}[name]
         for ax, values in zip(axes, (success, ret)):
             for row in values:
@@ -202,6 +204,23 @@ def main():
     (out / "results.md").write_text("\n".join(lines) + "\n")
     print("\n".join(lines))
     print(f"plot: {out / 'curves.png'}")
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--out", type=Path, default=Path("runs/gym-vs-lavatube"))
+    parser.add_argument("--steps", type=int, default=300_000)
+    parser.add_argument("--seeds", type=int, default=3)
+    parser.add_argument("--report-only", action="store_true",
+                        help="redo results.md and curves.png from OUT/results.json")
+    args = parser.parse_args()
+    out = args.out.resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    if args.report_only:
+        results = json.loads((out / "results.json").read_text())
+    else:
+        results = measure(out, args.steps, args.seeds)
+    report(out, results)
 
 
 if __name__ == "__main__":

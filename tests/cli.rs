@@ -16,22 +16,22 @@ fn lavatube(args: &[&str]) -> (i32, String, String) {
     )
 }
 
-/// A config file in a fresh temp dir whose out-dir is inside it too.
-fn config(name: &str, body: &str) -> (PathBuf, PathBuf) {
-    let dir = std::env::temp_dir().join(format!("lavatube-cli-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&dir).expect("temp dir");
-    let path = dir.join("bad.toml");
-    let out = dir.join("runs");
+/// A config file in a fresh temp dir (removed when the first value drops) whose out-dir is
+/// inside it too.
+fn config(body: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("bad.toml");
+    let out = dir.path().join("runs");
     std::fs::write(
         &path,
         format!("[run]\nout-dir = \"{}\"\n{body}", out.display()),
     )
     .expect("write");
-    (path, out)
+    (dir, path, out)
 }
 
 fn assert_refused(name: &str, body: &str, expected: &str) {
-    let (path, out) = config(name, body);
+    let (_dir, path, out) = config(body);
     let run_id = format!("cli-{name}");
     let (code, stdout, stderr) = lavatube(&[
         "run",

@@ -32,7 +32,7 @@ pub enum Outcome {
     Refused,
 }
 
-/// The envs a gym client drives, and where its session stands.
+/// The envs a gym client drives, and where the client stands (reset or not).
 pub struct GymEnvs {
     pub fleet: Fleet,
     pub driver: Driver,
