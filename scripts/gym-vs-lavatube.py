@@ -1,6 +1,8 @@
 #!/usr/bin/env python3
 """lavatube's simulator under Gymnasium and Stable-Baselines3, against lavatube's own runtime
-on the same config: `configs/default.toml`'s 8 flat envs and PPO settings (SPEC S6).
+on the same config: by default `configs/default.toml`'s 8 flat envs and PPO settings (SPEC S6
+but for a constant learning rate; a config with `ppo.anneal-lr = true` decays it linearly to
+0 over the run for both learners, as the paper does).
 
 1. Throughput: env steps/s of `lavatube.gym.VectorEnv` under random actions, of SB3's PPO
    learning on it, and of `lavatube run` (its own learner) in async and in sync mode.
@@ -11,7 +13,8 @@ on the same config: `configs/default.toml`'s 8 flat envs and PPO settings (SPEC 
 Needs the release binaries (`cargo build --release`) and, in a virtual environment,
 `pip install ./python[gym] stable-baselines3 matplotlib`.
 
-    scripts/gym-vs-lavatube.py [--out DIR] [--steps 300000] [--seeds 3] [--report-only]
+    scripts/gym-vs-lavatube.py [--config C] [--out DIR] [--steps 300000] [--seeds 3]
+                               [--report-only]
 """
 
 import argparse
@@ -27,7 +30,6 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 BIN = ROOT / "target" / "release"
-CONFIG = ROOT / "configs" / "default.toml"
 #: Steps of the random-action throughput measurement.
 RANDOM_STEPS = 40_000
 #: Student's t at 97.5 % by degrees of freedom, for 95 % intervals over a few seeds.
@@ -35,12 +37,12 @@ T975 = {1: 12.706, 2: 4.303, 3: 3.182, 4: 2.776, 5: 2.571, 6: 2.447, 7: 2.365, 8
         9: 2.262}
 
 
-def lavatube_run(out: Path, seed: int, steps: int, mode: str) -> dict:
-    """`lavatube run` on configs/default.toml with its own learner: steps/s, the curve, and
-    the `[ppo]` section it ran with (every default filled in)."""
+def lavatube_run(base: Path, out: Path, seed: int, steps: int, mode: str) -> dict:
+    """`lavatube run` on the config `base` with its own learner: steps/s, the curve, and the
+    `[ppo]` section it ran with (every default filled in)."""
     run_id = f"{mode}-{seed}-{uuid.uuid4().hex[:6]}"
     config = out / f"{run_id}.toml"
-    config.write_text(f'extends = "{CONFIG}"\n[run]\nseed = {seed}\ntotal-steps = {steps}\n'
+    config.write_text(f'extends = "{base}"\n[run]\nseed = {seed}\ntotal-steps = {steps}\n'
                       f'mode = "{mode}"\nout-dir = "{out}"\n')
     subprocess.run([BIN / "lavatube", "run", "--config", config, "--run-id", run_id, "--quiet"],
                    check=True, stdout=subprocess.DEVNULL)
@@ -54,7 +56,7 @@ def lavatube_run(out: Path, seed: int, steps: int, mode: str) -> dict:
                        float(r["mean_episode_return"])) for r in rows]}
 
 
-def sb3_run(out: Path, seed: int, steps: int, ppo: dict) -> dict:
+def sb3_run(base: Path, out: Path, seed: int, steps: int, ppo: dict) -> dict:
     """SB3's PPO with lavatube's hyperparameters (`ppo`, a resolved `[ppo]` section) on the
     gym env: steps/s and the curve (one point per rollout, as lavatube's learner reports)."""
     import torch
@@ -84,13 +86,16 @@ def sb3_run(out: Path, seed: int, steps: int, ppo: dict) -> dict:
                                     float(np.mean(self.returns))))
             self.returns, self.successes = [], []
 
-    envs = VecEnv(CONFIG, overrides={"run": {"out-dir": str(out)}}, bin_dir=BIN)
+    envs = VecEnv(base, overrides={"run": {"out-dir": str(out)}}, bin_dir=BIN)
     n = envs.num_envs
+    rate = ppo["learning-rate"]
+    # SB3 calls a schedule with the fraction of the run still to go: linear decay to 0.
+    schedule = (lambda remaining: rate * remaining) if ppo["anneal-lr"] else rate
     env = VecNormalize(VecMonitor(envs), norm_obs=True, norm_reward=False,
                        clip_obs=ppo["obs-clip"], gamma=ppo["gamma"])
     model = PPO("MlpPolicy", env, seed=seed, device="cpu",
                 n_steps=ppo["rollout-transitions"] // n, batch_size=ppo["minibatch-size"],
-                n_epochs=ppo["epochs"], learning_rate=ppo["learning-rate"],
+                n_epochs=ppo["epochs"], learning_rate=schedule,
                 gamma=ppo["gamma"], gae_lambda=ppo["gae-lambda"], clip_range=ppo["clip-coef"],
                 ent_coef=ppo["ent-coef"], vf_coef=ppo["vf-coef"],
                 max_grad_norm=ppo["max-grad-norm"], normalize_advantage=ppo["norm-adv"],
@@ -106,11 +111,11 @@ def sb3_run(out: Path, seed: int, steps: int, ppo: dict) -> dict:
     return {"steps_per_s": model.num_timesteps / secs, "curve": curve.points}
 
 
-def random_steps_per_s(out: Path) -> float:
+def random_steps_per_s(base: Path, out: Path) -> float:
     """The gym env alone: random actions, no learner."""
     from lavatube.gym import VectorEnv
 
-    envs = VectorEnv(CONFIG, overrides={"run": {"out-dir": str(out)}}, bin_dir=BIN)
+    envs = VectorEnv(base, overrides={"run": {"out-dir": str(out)}}, bin_dir=BIN)
     try:
         envs.reset(seed=1)
         envs.action_space.seed(1)
@@ -139,19 +144,19 @@ def mean_ci(values, fmt: str = ",.0f") -> str:
     return f"{values.mean():{fmt}} ± {half:{fmt}}"
 
 
-def measure(out: Path, steps: int, seeds: int) -> dict:
-    """Every run of the comparison; also written to `out/results.json`."""
+def measure(base: Path, out: Path, steps: int, seeds: int) -> dict:
+    """Every run of the comparison on the config `base`; also written to `out/results.json`."""
     print("gym env, random actions ...", flush=True)
-    random = random_steps_per_s(out)
+    random = random_steps_per_s(base, out)
     print("lavatube run, async ...", flush=True)
-    lavatube_async = lavatube_run(out, 1, steps, "async")["steps_per_s"]
+    lavatube_async = lavatube_run(base, out, 1, steps, "async")["steps_per_s"]
     runs = {"lavatube": [], "sb3": []}
     for seed in range(1, seeds + 1):
         print(f"seed {seed}: lavatube's learner (sync) ...", flush=True)
-        runs["lavatube"].append(lavatube_run(out, seed, steps, "sync"))
+        runs["lavatube"].append(lavatube_run(base, out, seed, steps, "sync"))
         print(f"seed {seed}: SB3 PPO on the gym env ...", flush=True)
-        runs["sb3"].append(sb3_run(out, seed, steps, runs["lavatube"][-1]["ppo"]))
-    results = {"steps": steps, "random_steps_per_s": random,
+        runs["sb3"].append(sb3_run(base, out, seed, steps, runs["lavatube"][-1]["ppo"]))
+    results = {"config": str(base), "steps": steps, "random_steps_per_s": random,
                "lavatube_async_steps_per_s": lavatube_async, "runs": runs}
     (out / "results.json").write_text(json.dumps(results, indent=1))
     return results
@@ -169,7 +174,7 @@ def report(out: Path, results: dict):
     grid = np.linspace(0, steps, 61)[1:]
     tail = grid >= 0.8 * steps
     lines = [f"# Gymnasium + SB3 against lavatube's runtime, {len(runs['sb3'])} seeds × "
-             f"{steps:,} env steps, `configs/default.toml`", "",
+             f"{steps:,} env steps, `{Path(results['config']).name}`", "",
              "| what | env steps/s |", "|---|---:|",
              f"| gym env, random actions (8 envs) | {results['random_steps_per_s']:,.0f} |",
              f"| `lavatube run`, async | {results['lavatube_async_steps_per_s']:,.0f} |",
@@ -208,6 +213,7 @@ def report(out: Path, results: dict):
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--config", type=Path, default=ROOT / "configs" / "default.toml")
     parser.add_argument("--out", type=Path, default=Path("runs/gym-vs-lavatube"))
     parser.add_argument("--steps", type=int, default=300_000)
     parser.add_argument("--seeds", type=int, default=3)
@@ -219,7 +225,7 @@ def main():
     if args.report_only:
         results = json.loads((out / "results.json").read_text())
     else:
-        results = measure(out, args.steps, args.seeds)
+        results = measure(args.config.resolve(), out, args.steps, args.seeds)
     report(out, results)
 
 
