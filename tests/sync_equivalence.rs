@@ -19,7 +19,10 @@ mod support;
 fn train_in_process(cfg: &Config, source: u32) -> Learner {
     let layout = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM);
     let mut learner = Learner::new(cfg, layout.clone(), cfg.run.seed).expect("learner");
-    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain).expect("terrain"));
+    let terrain = SharedTerrain::new(
+        Terrain::build(&cfg.sim.terrain).expect("terrain"),
+        cfg.sim.terrain.collider,
+    );
     let sim_seed = common::Rng::source_seed(cfg.run.seed, source);
     let mut fleet = Fleet::new(&cfg.sim, &terrain, sim_seed);
     let policy =

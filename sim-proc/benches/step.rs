@@ -40,7 +40,8 @@ fn decision_steps(c: &mut Criterion) {
                 threads,
                 ..SimConfig::default()
             };
-            let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+            let terrain =
+                SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
             let mut fleet = Fleet::new(&cfg, &terrain, 1);
             let mut ctrl = GoToController::new(cfg.robot.action_limit);
             let mut obs = vec![[0.0f32; common::OBS_DIM]; envs];

@@ -45,7 +45,7 @@ fn main() -> anyhow::Result<()> {
             rough_envs: if k == 1 { 4 } else { 0 },
             ..cfg.sim.clone()
         };
-        let terrain = SharedTerrain::new(Terrain::build(&sim.terrain)?);
+        let terrain = SharedTerrain::new(Terrain::build(&sim.terrain)?, sim.terrain.collider);
         let mut fleet = Fleet::new(&sim, &terrain, cfg.run.seed);
         let mut ctrl = GoToController::new(sim.robot.action_limit);
         let mut series = vec![Vec::new(); fleet.len()];

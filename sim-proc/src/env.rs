@@ -5,7 +5,7 @@ use crate::attitude::Sensing;
 use crate::robot::{self, Robot, TERRAIN_GROUP};
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
-use common::config::{AreaKind, AttitudeSource, EpisodeStart, Rect, SimConfig};
+use common::config::{AreaKind, AttitudeSource, EpisodeStart, Rect, SimConfig, TerrainCollider};
 use common::{OBS_DIM, Rng};
 use glam::{EulerRot, Quat, Vec3};
 use rapier3d::prelude::*;
@@ -27,8 +27,9 @@ pub struct SharedTerrain {
 }
 
 impl SharedTerrain {
-    pub fn new(terrain: Terrain) -> Self {
-        let (shape, centre) = crate::terrain::shape(&terrain);
+    /// `terrain` with its collider shape of kind `collider` (`sim.terrain.collider`).
+    pub fn new(terrain: Terrain, collider: TerrainCollider) -> Self {
+        let (shape, centre) = crate::terrain::shape(&terrain, collider);
         Self {
             terrain: Arc::new(terrain),
             shape,
@@ -418,7 +419,7 @@ mod tests {
             flat_envs: 2,
             ..SimConfig::default()
         };
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut bad = Env::new(0, &cfg, &terrain, 1);
         let mut good = Env::new(1, &cfg, &terrain, 1);
         let episode = bad.episode_index;
@@ -451,7 +452,7 @@ mod tests {
     fn a_robot_that_stands_still_stalls_and_is_respawned_one_that_drives_does_not() {
         let mut cfg = SimConfig::default();
         cfg.task.stall_steps = 20;
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut env = Env::new(0, &cfg, &terrain, 4);
         let spot = env.pose().pos;
         let endings: Vec<_> = (0..20).map(|_| env.step([0.0, 0.0]).ending).collect();
@@ -477,7 +478,7 @@ mod tests {
 
     /// The legs (start, target) an env drives in its first `legs` episodes under `act`.
     fn legs(cfg: &SimConfig, legs: u64, mut act: impl FnMut(&Env) -> [f32; 2]) -> Vec<[f64; 4]> {
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut env = Env::new(0, cfg, &terrain, 9);
         let mut seen = Vec::new();
         while env.episode_index < legs {
@@ -519,22 +520,46 @@ mod tests {
     }
 
     #[test]
-    fn fewer_solver_iterations_reach_the_world_and_still_drive_on_rough_ground() {
-        let mut cfg = SimConfig {
-            flat_envs: 0,
-            rough_envs: 1,
-            ..SimConfig::default()
-        };
-        cfg.robot.solver_iterations = 2;
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
-        let mut env = Env::new(0, &cfg, &terrain, 3);
-        assert_eq!(env.world.integration_parameters.num_solver_iterations, 2);
-        let mut goto = GoToController::new(cfg.robot.action_limit);
-        let successes = (0..1500)
-            .filter(|_| env.step(goto.act(0, &env.observe())).ending == Some(Ending::Success))
-            .count();
-        assert!(successes >= 10, "{successes} successes");
-        assert_eq!(env.faults, 0);
+    fn both_terrain_colliders_and_fewer_iterations_reach_the_world_and_drive_alike() {
+        use rapier3d::prelude::ShapeType;
+        let mut reached = Vec::new();
+        for (collider, iterations, kind) in [
+            (TerrainCollider::Heightfield, 4, ShapeType::HeightField),
+            (TerrainCollider::Trimesh, 4, ShapeType::TriMesh),
+            (TerrainCollider::Heightfield, 2, ShapeType::HeightField),
+        ] {
+            let mut cfg = SimConfig {
+                flat_envs: 0,
+                rough_envs: 4,
+                threads: 1,
+                ..SimConfig::default()
+            };
+            cfg.terrain.collider = collider;
+            cfg.robot.solver_iterations = iterations;
+            let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), collider);
+            let mut fleet = crate::Fleet::new(&cfg, &terrain, 3);
+            let env = &fleet.envs[0];
+            assert_eq!(
+                env.world.integration_parameters.num_solver_iterations,
+                iterations
+            );
+            let ground = env
+                .world
+                .colliders
+                .iter()
+                .find(|(_, c)| c.parent().is_none());
+            assert_eq!(ground.map(|(_, c)| c.shape().shape_type()), Some(kind));
+            let mut goto = GoToController::new(cfg.robot.action_limit);
+            let s =
+                crate::standalone::drive(&mut fleet, &mut goto, 750, |_, _| Ok(())).expect("drive");
+            assert_eq!(s.faults, 0);
+            reached.push(s.episodes.successes as f64);
+        }
+        // The same ground under the same controller: about as many targets reached.
+        assert!(reached[0] >= 50.0, "{reached:?}");
+        for r in &reached[1..] {
+            assert!((r / reached[0] - 1.0).abs() < 0.1, "{reached:?}");
+        }
     }
 
     /// Mean rolling standard deviation of `xs` over windows of `w`.
@@ -558,7 +583,8 @@ mod tests {
                 ..SimConfig::default()
             };
             cfg.observation = AttitudeSource::Imu;
-            let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+            let terrain =
+                SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
             let mut env = Env::new(0, &cfg, &terrain, 11);
             let mut goto = GoToController::new(cfg.robot.action_limit);
             let (mut truth, mut seen) = (Vec::new(), Vec::new());
@@ -597,7 +623,7 @@ mod tests {
         };
         let mut sensed = cfg.clone();
         sensed.imu.simulate = true;
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut plain = Env::new(0, &cfg, &terrain, 11);
         let mut with_imu = Env::new(0, &sensed, &terrain, 11);
         let mut goto = GoToController::new(cfg.robot.action_limit);
@@ -621,7 +647,7 @@ mod tests {
             mixed_envs: 16,
             ..SimConfig::default()
         };
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let grounds: Vec<(AreaKind, AreaKind)> = (0..16)
             .map(|id| {
                 let env = Env::new(id, &cfg, &terrain, 3);

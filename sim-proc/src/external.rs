@@ -276,7 +276,7 @@ mod tests {
         };
         // Env 0 stands still and stalls every 10 steps: endings to check.
         cfg.task.stall_steps = 10;
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut gym = GymEnvs::new(&cfg, &terrain, 1, 0);
         let (h, o) = gym.handle(&request(1, GYM_STEP, None), &[0.0; 6]);
         assert_eq!((o, h.status, h.request), (Outcome::Refused, GYM_REFUSED, 1));

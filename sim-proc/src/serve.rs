@@ -181,7 +181,7 @@ fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
 pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "sim")?;
     let mut outputs = TickOutputs::open(&bus, cfg, args)?;
-    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
+    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?, cfg.sim.terrain.collider);
     if cfg.sim.acting == Acting::External {
         return crate::external::serve(cfg, &bus, &mut outputs, &terrain, args.source);
     }

@@ -92,7 +92,7 @@ pub fn run(
     steps: u64,
     out: Outputs,
 ) -> anyhow::Result<Summary> {
-    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?);
+    let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?, cfg.sim.terrain.collider);
     let mut fleet = Fleet::new(&cfg.sim, &terrain, cfg.run.seed);
     let started = std::time::Instant::now();
     let mut csv = out.telemetry.map(TelemetryCsv::create).transpose()?;
@@ -210,7 +210,7 @@ mod tests {
             ..SimConfig::default()
         };
         cfg.task.stall_steps = 10;
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut fleet = Fleet::new(&cfg, &terrain, 2);
         let s = drive(&mut fleet, &mut Idle, 35, |_, _| Ok(())).expect("drive");
         // Each robot stalls at steps 10, 20 and 30 and never reaches a target.

@@ -19,7 +19,7 @@ fn plane() -> (SimConfig, SharedTerrain) {
         },
         ..SimConfig::default()
     };
-    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
     (cfg, terrain)
 }
 
@@ -120,7 +120,7 @@ fn rough_cfg(envs: usize) -> SimConfig {
 #[test]
 fn random_driving_on_rough_ground_stays_physical() {
     let cfg = rough_cfg(1);
-    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
     let mut env = Env::new(0, &cfg, &terrain, 11);
     let mut ctrl = RandomController::new(cfg.robot.action_limit, 10, 11);
     use sim_proc::controllers::Controller;
@@ -148,7 +148,7 @@ fn random_driving_on_rough_ground_stays_physical() {
 
 /// Mean over envs and ticks of the rolling std (window 70) of sin θx under go-to-target.
 fn mean_rolling_std(cfg: &SimConfig, ticks: u64) -> f64 {
-    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
     let mut fleet = Fleet::new(cfg, &terrain, 3);
     let mut ctrl = GoToController::new(cfg.robot.action_limit);
     let mut series = vec![Vec::new(); fleet.len()];
@@ -195,7 +195,7 @@ fn same_seed_gives_identical_telemetry_whatever_the_thread_count() {
             threads,
             ..SimConfig::default()
         };
-        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain));
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut fleet = Fleet::new(&cfg, &terrain, 5);
         let mut ctrl = RandomController::new(3.0, 7, 5);
         let mut rows = Vec::new();
