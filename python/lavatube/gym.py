@@ -90,14 +90,14 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._actions = np.zeros((self.num_envs, wire.ACT_DIM), dtype=np.float32)
 
-    def reset(self, *, seed: int | None = None, options: dict | None = None):
+    def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
         """Every env's first observation, and `info["area"]` (0 flat, 1 rough): rebuilt from
-        `seed`, or with none each env's next episode from a new pose. `options` is unused."""
-        if seed is not None and not isinstance(seed, (int, np.integer)):
-            raise TypeError(f"seed must be one int for every env, not {seed!r}")
+        `seed` (an int s, or the per-env list [s, s+1, …] Gymnasium makes of it), or with
+        none each env's next episode from a new pose. `options` is unused."""
+        seed = _one_seed(seed, self.num_envs)
         if seed is not None:
             self._np_random, self._np_random_seed = gymnasium.utils.seeding.np_random(int(seed))
-        table = self._sim.request(wire.GYM_RESET, seed=None if seed is None else int(seed))
+        table = self._sim.request(wire.GYM_RESET, seed=seed)
         return table["obs"], {"area": table["area"], "_area": np.ones(self.num_envs, dtype=bool)}
 
     def step(self, actions):
@@ -126,6 +126,19 @@ class VectorEnv(gymnasium.vector.VectorEnv):
             self._sim.close()
             if self._launcher is not None:
                 self._launcher.stop()
+
+
+def _one_seed(seed, envs: int) -> int | None:
+    """The one seed the sim rebuilds every env from: `seed` itself, or the first of a per-env
+    list that counts up from it by one, as Gymnasium's vector envs seed theirs."""
+    if seed is None or isinstance(seed, (int, np.integer)):
+        return None if seed is None else int(seed)
+    seeds = list(seed)
+    if (len(seeds) == envs and isinstance(seeds[0], (int, np.integer))
+            and seeds == [seeds[0] + i for i in range(envs)]):
+        return int(seeds[0])
+    raise ValueError(f"the sim seeds all {envs} envs from one seed: give an int s or the list "
+                     f"[s, s+1, …], not {seed!r}")
 
 
 class Env(gymnasium.Env):

@@ -63,6 +63,11 @@ def test_random_steps_match_sim_proc_replaying_the_same_actions(tmp_path, bin_di
             terminated.append(te), truncated.append(tr)
             for i in np.flatnonzero(info.get("_final_obs", [])):
                 final_obs[t, i] = info["final_obs"][i]
+        # Gymnasium's per-env seeds [s, s+1, …] name the same envs as s; other lists cannot.
+        again, _ = envs.reset(seed=list(range(seed, seed + 8)))
+        np.testing.assert_array_equal(again, first)
+        with pytest.raises(ValueError, match="one seed"):
+            envs.reset(seed=[seed] * 8)
     finally:
         envs.close()
     assert envs._launcher.proc.returncode == 0, envs._launcher.log.read_text()
