@@ -294,7 +294,13 @@ mod tests {
             other,
             at(Mark::Success, 0.0, 0.0, 0),
         ];
-        let size = draw(&terrain, &[("flat", cfg.flat_area)], &track, &png_path).expect("draw");
+        let size = draw(
+            &terrain,
+            &[("flat", cfg.areas[0].rect())],
+            &track,
+            &png_path,
+        )
+        .expect("draw");
         let map = Map::of(&terrain);
         assert_eq!(size, (cols * map.scale, rows * map.scale));
         assert!(map.width.max(map.height) <= MAX_SIDE);

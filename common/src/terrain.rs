@@ -1,13 +1,14 @@
-//! The lava-tube floor: a height grid covering both training areas (SPEC S1) and the mixed
-//! course.
+//! The lava-tube floor: a height grid covering every training area (SPEC S1's flat and rough,
+//! and the `slope` and `gravel` kinds) and the mixed course.
 //!
 //! Procedural by default (deterministic from `terrain.seed`): millimetre micro-relief
-//! everywhere, plus multi-octave bumps inside the rough area scaled by `roughness-scale`.
+//! everywhere, plus each kind's ground: multi-octave bumps on rough ground scaled by
+//! `roughness-scale`, small dense stones on gravel, a pyramid of the incline on a slope.
 //! A measured heightmap (16-bit PNG or a plain `.grid` text file) can replace it.
 //! The grid is built once and shared by every env's physics world (sim-proc makes it a
 //! collider); the map and the Rerun recording draw the same grid.
 
-use crate::config::{HeightmapConfig, Rect, TerrainConfig};
+use crate::config::{Area, AreaKind, HeightmapConfig, Rect, TerrainConfig};
 use std::path::{Path, PathBuf};
 
 /// A heightmap file that cannot be used, named with why.
@@ -40,10 +41,16 @@ impl Terrain {
         }
     }
 
-    /// SPEC S1 (interpretation): a procedural floor covering both areas and the mixed course
-    /// plus a border; bumps in the rough area and the mixed course's rough part.
+    /// SPEC S1 (interpretation): a procedural floor covering every area and the mixed course
+    /// plus a border, micro-relief everywhere, and each kind's ground in its area and its
+    /// mixed-course parts: bumps on rough ground, stones on gravel, a pyramid on a slope.
     pub fn procedural(cfg: &TerrainConfig) -> Self {
-        let areas = [cfg.flat_area, cfg.rough_area, cfg.mixed_area];
+        let areas: Vec<Rect> = cfg
+            .areas
+            .iter()
+            .map(Area::rect)
+            .chain([cfg.mixed_area])
+            .collect();
         let lo = |f: fn(&Rect) -> f64| areas.iter().map(f).fold(f64::INFINITY, f64::min);
         let hi = |f: fn(&Rect) -> f64| areas.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
         let x0 = lo(|a| a.x[0]) - cfg.border;
@@ -54,24 +61,32 @@ impl Terrain {
         let rows = ((z1 - z0) / cfg.cell_size).ceil() as usize + 1;
         let micro = Noise::new(cfg.seed, 0);
         let bumps = Noise::new(cfg.seed, 1);
+        let stones = Stones::new(cfg.seed, &cfg.gravel);
+        let rough: Vec<Rect> = cfg.rects_of(AreaKind::Rough).collect();
+        let gravel: Vec<Rect> = cfg.rects_of(AreaKind::Gravel).collect();
+        let slopes: Vec<Rect> = cfg.rects_of(AreaKind::Slope).collect();
         let rough_peak = cfg.rough_amplitude * cfg.roughness_scale;
+        let incline = cfg.slope.incline_deg.to_radians().tan();
         let mut heights = vec![0.0f32; rows * cols];
         for j in 0..cols {
             for i in 0..rows {
                 let (x, z) = (x0 + j as f64 * cfg.cell_size, z0 + i as f64 * cfg.cell_size);
                 let mut h = cfg.flat_relief
                     * micro.fbm(x / cfg.flat_wavelength, z / cfg.flat_wavelength, 2);
-                let w = rough_weight(&cfg.rough_area, cfg.blend, x, z).max(rough_weight(
-                    &cfg.mixed_rough,
-                    cfg.blend,
-                    x,
-                    z,
-                ));
+                let w = blend_weight(&rough, cfg.blend, x, z);
                 if w > 0.0 {
                     let octaves = cfg.rough_octaves;
                     h += w
                         * rough_peak
                         * bumps.fbm(x / cfg.rough_wavelength, z / cfg.rough_wavelength, octaves);
+                }
+                let w = blend_weight(&gravel, cfg.blend, x, z);
+                if w > 0.0 {
+                    h += w * stones.height(x, z);
+                }
+                let rise = slopes.iter().map(|r| inset(r, x, z)).fold(0.0, f64::max);
+                if rise > 0.0 {
+                    h += incline * rise;
                 }
                 heights[i + j * rows] = h as f32;
             }
@@ -177,8 +192,27 @@ impl Terrain {
     }
 }
 
-/// 1 inside the rough rectangle, fading smoothly to 0 at `blend` metres outside it.
-fn rough_weight(r: &Rect, blend: f64, x: f64, z: f64) -> f64 {
+/// How much of a kind's ground is at `(x, z)`: the largest [`edge_weight`] over its `rects`,
+/// 0 when there are none.
+fn blend_weight(rects: &[Rect], blend: f64, x: f64, z: f64) -> f64 {
+    rects
+        .iter()
+        .map(|r| edge_weight(r, blend, x, z))
+        .fold(0.0, f64::max)
+}
+
+/// The distance from `(x, z)` to the nearest edge of `r`, inside it; 0 outside. A slope's
+/// rise is this times the incline: a pyramid whose every face tilts by the incline.
+fn inset(r: &Rect, x: f64, z: f64) -> f64 {
+    (x - r.x[0])
+        .min(r.x[1] - x)
+        .min(z - r.z[0])
+        .min(r.z[1] - z)
+        .max(0.0)
+}
+
+/// 1 inside the rectangle, fading smoothly to 0 at `blend` metres outside it.
+fn edge_weight(r: &Rect, blend: f64, x: f64, z: f64) -> f64 {
     let dx = (r.x[0] - x).max(x - r.x[1]).max(0.0);
     let dz = (r.z[0] - z).max(z - r.z[1]).max(0.0);
     let d = (dx * dx + dz * dz).sqrt();
@@ -187,6 +221,51 @@ fn rough_weight(r: &Rect, blend: f64, x: f64, z: f64) -> f64 {
     }
     let t = (1.0 - d / blend).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
+}
+
+/// Gravel: one stone per `spacing`-square cell, at a random spot in its cell's middle, of
+/// random height up to `amplitude` and a radius of 35–50 % of the spacing, shaped
+/// `(1 − d²/r²)²` (smooth where it meets the floor). Where stones overlap the taller one
+/// shows.
+struct Stones {
+    /// Three lattice values per cell: the stone's offsets along x and z, and its size.
+    at_x: Noise,
+    at_z: Noise,
+    size: Noise,
+    spacing: f64,
+    amplitude: f64,
+}
+
+impl Stones {
+    fn new(seed: u64, g: &crate::config::GravelConfig) -> Self {
+        Self {
+            at_x: Noise::new(seed, 2),
+            at_z: Noise::new(seed, 3),
+            size: Noise::new(seed, 4),
+            spacing: g.spacing,
+            amplitude: g.amplitude,
+        }
+    }
+
+    fn height(&self, x: f64, z: f64) -> f64 {
+        let (u, v) = (x / self.spacing, z / self.spacing);
+        let (ci, cj) = (u.floor() as i64, v.floor() as i64);
+        let mut top = 0.0f64;
+        for i in ci - 1..=ci + 1 {
+            for j in cj - 1..=cj + 1 {
+                // Lattice values are in [-1, 1]: centres within the cell's middle 60 %.
+                let cu = i as f64 + 0.5 + 0.3 * self.at_x.lattice(i, j);
+                let cv = j as f64 + 0.5 + 0.3 * self.at_z.lattice(i, j);
+                let size = 0.5 + 0.5 * self.size.lattice(i, j);
+                let r = 0.35 + 0.15 * size;
+                let d2 = ((u - cu).powi(2) + (v - cv).powi(2)) / (r * r);
+                if d2 < 1.0 {
+                    top = top.max((0.4 + 0.6 * size) * (1.0 - d2).powi(2));
+                }
+            }
+        }
+        self.amplitude * top
+    }
 }
 
 /// Deterministic 2-D value noise with quintic interpolation.
@@ -363,16 +442,18 @@ mod tests {
             b.x[0] <= -10.0 && b.x[1] >= 1.5 && b.z[0] <= -2.0 && b.z[1] >= 6.0,
             "{b:?}"
         );
-        let flat = rms_slope(&a, &cfg.flat_area);
-        let rough = rms_slope(&a, &cfg.rough_area);
+        let area = |kind| cfg.area(kind).expect("the default world has it");
+        let flat = rms_slope(&a, &area(AreaKind::Flat));
+        let rough = rms_slope(&a, &area(AreaKind::Rough));
         assert!(flat > 0.0, "the flat area has micro-relief");
         assert!(rough > 2.5 * flat, "rough {rough} vs flat {flat}");
         // The mixed course: rough where it says, flat past the blend.
-        let course_rough = rms_slope(&a, &cfg.mixed_rough);
+        let mixed_rough = cfg.mixed_parts[0].rect();
+        let course_rough = rms_slope(&a, &mixed_rough);
         let course_flat = rms_slope(
             &a,
             &Rect {
-                x: [cfg.mixed_rough.x[1] + cfg.blend, cfg.mixed_area.x[1]],
+                x: [mixed_rough.x[1] + cfg.blend, cfg.mixed_area.x[1]],
                 z: cfg.mixed_area.z,
             },
         );
@@ -390,6 +471,109 @@ mod tests {
             .collect();
         assert!(hs.iter().all(|h| h.abs() <= cfg.flat_relief + 1e-6));
         assert!(hs.iter().any(|h| h.abs() > 0.1 * cfg.flat_relief));
+    }
+
+    /// The four kinds side by side, each 1.5 m × 2 m, and a mixed course crossing all of
+    /// them; a 1 cm grid resolves gravel's 5 cm stones.
+    fn four_kinds() -> TerrainConfig {
+        let area = |kind, x0: f64| Area {
+            kind,
+            x: [x0, x0 + 1.5],
+            z: [0.0, 2.0],
+        };
+        TerrainConfig {
+            areas: vec![
+                area(AreaKind::Flat, 0.0),
+                area(AreaKind::Rough, 2.0),
+                area(AreaKind::Slope, 4.0),
+                area(AreaKind::Gravel, 6.0),
+            ],
+            mixed_area: Rect {
+                x: [0.0, 7.5],
+                z: [3.0, 4.0],
+            },
+            mixed_parts: vec![
+                Area {
+                    kind: AreaKind::Slope,
+                    x: [2.0, 3.5],
+                    z: [3.0, 4.0],
+                },
+                Area {
+                    kind: AreaKind::Gravel,
+                    x: [4.5, 6.0],
+                    z: [3.0, 4.0],
+                },
+            ],
+            cell_size: 0.01,
+            ..TerrainConfig::default()
+        }
+    }
+
+    #[test]
+    fn a_slope_tilts_by_its_incline_wherever_the_robot_stands() {
+        let cfg = TerrainConfig {
+            flat_relief: 0.0,
+            ..four_kinds()
+        };
+        let t = Terrain::procedural(&cfg);
+        let tan = cfg.slope.incline_deg.to_radians().tan();
+        // A pyramid on x ∈ [4, 5.5], z ∈ [0, 2]: along x from the west edge the ground rises
+        // at the incline up to the ridge, 0.75 m in; the eastern face falls as steeply.
+        let (a, b) = (t.height_at(4.2, 1.0), t.height_at(4.5, 1.0));
+        assert!(((b - a) / 0.3 - tan).abs() < 0.01 * tan, "{a} → {b}");
+        let (c, d) = (t.height_at(5.0, 1.0), t.height_at(5.3, 1.0));
+        assert!(((c - d) / 0.3 - tan).abs() < 0.01 * tan, "{c} → {d}");
+        // Its edges meet the floor, and the top is 0.75 m × the incline up.
+        assert!(t.height_at(4.0, 1.0).abs() < 1e-6);
+        assert!((t.height_at(4.75, 1.0) - 0.75 * tan).abs() < 1e-3);
+        // The mixed course's slope part rises the same way; its flat stretch does not.
+        assert!((t.height_at(2.3, 3.5) - 0.3 * tan).abs() < 1e-3);
+        assert!(t.height_at(1.0, 3.5).abs() < 1e-6);
+    }
+
+    #[test]
+    fn gravel_is_small_dense_stones_beside_roughs_larger_bumps() {
+        let cfg = TerrainConfig {
+            flat_relief: 0.0,
+            ..four_kinds()
+        };
+        let t = Terrain::procedural(&cfg);
+        let heights = |x0: f64| -> Vec<f64> {
+            (0..120)
+                .map(|k| t.height_at(x0 + 0.01 * f64::from(k), 1.0))
+                .collect()
+        };
+        let (gravel, rough) = (heights(6.1), heights(2.1));
+        let peak = |h: &[f64]| h.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+        // Stones stay within their centimetre; the rough bumps are several times taller.
+        assert!(peak(&gravel) <= cfg.gravel.amplitude + 1e-6);
+        assert!(peak(&gravel) > 0.3 * cfg.gravel.amplitude);
+        assert!(peak(&rough) > 2.0 * peak(&gravel));
+        // Dense: the relief's typical wavelength, 2π · RMS height ÷ RMS gradient (exact for
+        // a sinusoid), is gravel's spacing-sized, several times shorter than rough's.
+        let wavelength = |h: &[f64]| {
+            let m = h.iter().sum::<f64>() / h.len() as f64;
+            let rms = (h.iter().map(|v| (v - m).powi(2)).sum::<f64>() / h.len() as f64).sqrt();
+            let g: Vec<f64> = h.windows(2).map(|w| (w[1] - w[0]) / 0.01).collect();
+            let grad = (g.iter().map(|v| v * v).sum::<f64>() / g.len() as f64).sqrt();
+            std::f64::consts::TAU * rms / grad
+        };
+        let (lg, lr) = (wavelength(&gravel), wavelength(&rough));
+        assert!(lg < 2.0 * cfg.gravel.spacing, "gravel's wavelength {lg} m");
+        assert!(lr > 3.0 * lg, "rough's {lr} m against gravel's {lg} m");
+    }
+
+    #[test]
+    fn the_mixed_course_names_the_kind_under_each_point() {
+        let cfg = four_kinds();
+        assert_eq!(cfg.mixed_kind_at(1.0, 3.5), AreaKind::Flat);
+        assert_eq!(cfg.mixed_kind_at(3.0, 3.5), AreaKind::Slope);
+        assert_eq!(cfg.mixed_kind_at(5.0, 3.5), AreaKind::Gravel);
+        assert_eq!(cfg.friction_of(AreaKind::Slope), Some(0.3));
+        assert_eq!(cfg.friction_of(AreaKind::Rough), None);
+        let default = TerrainConfig::default();
+        assert_eq!(default.mixed_kind_at(-5.0, 2.75), AreaKind::Rough);
+        assert_eq!(default.mixed_kind_at(-4.0, 2.75), AreaKind::Flat);
     }
 
     #[test]

@@ -163,8 +163,8 @@ pub const EVENT_FAULT: u8 = 8;
 #[type_name("lavatube.EnvTick.v3")]
 pub struct EnvTick {
     pub env: u32,
-    /// True terrain under the robot (0 flat, 1 rough): the env's area, or on the mixed
-    /// course the part it is on.
+    /// True terrain under the robot (`AreaKind::code`: 0 flat, 1 rough, 3 slope, 4 gravel):
+    /// the env's area, or on the mixed course the part it is on.
     pub area: u8,
     /// Bits `EVENT_*`.
     pub events: u8,
@@ -339,7 +339,7 @@ pub struct GymEnvStep {
     pub truncated: u8,
     /// 1 when the episode ended at its target.
     pub success: u8,
-    /// The ground under the robot: 0 flat, 1 rough.
+    /// The ground under the robot: `AreaKind::code` (0 flat, 1 rough, 3 slope, 4 gravel).
     pub area: u8,
     pub env: u32,
 }

@@ -21,6 +21,14 @@ pub enum EstimatorError {
         "{path}: line {line} has no IMU attitude (`imu_sin_pitch` is NaN): it was recorded without an IMU; analyse it with estimator.signal = \"truth\""
     )]
     NoImu { path: PathBuf, line: u64 },
+    #[error(
+        "{path}: line {line} is on `{kind}` ground; the analysis scores SPEC S7's two kinds, flat and rough"
+    )]
+    UnscoredKind {
+        path: PathBuf,
+        line: u64,
+        kind: &'static str,
+    },
     #[error("{path}: no telemetry rows after the header")]
     Empty { path: PathBuf },
     #[error("value #{index} is {value}; mixture data must be finite")]

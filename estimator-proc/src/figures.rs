@@ -15,6 +15,8 @@ use std::path::Path;
 const FLAT: RGBColor = RGBColor(31, 119, 180);
 const ROUGH: RGBColor = RGBColor(214, 39, 40);
 const MIXED: RGBColor = RGBColor(148, 103, 189);
+const SLOPE: RGBColor = RGBColor(140, 86, 75);
+const GRAVEL: RGBColor = RGBColor(127, 127, 127);
 use common::plot::FONT;
 const GRID: RGBColor = RGBColor(242, 242, 242);
 
@@ -23,6 +25,8 @@ fn area_color(area: AreaKind) -> RGBColor {
         AreaKind::Flat => FLAT,
         AreaKind::Rough => ROUGH,
         AreaKind::Mixed => MIXED,
+        AreaKind::Slope => SLOPE,
+        AreaKind::Gravel => GRAVEL,
     }
 }
 

@@ -7,6 +7,7 @@
 //! made without an IMU), and skipping it silently would shift every rolling window after it.
 //! A file with no rows is refused too.
 
+use crate::analysis::AREAS;
 use crate::{EstimatorError, Result};
 use common::TelemetryRow;
 use common::config::AttitudeSource;
@@ -19,8 +20,8 @@ pub fn read_telemetry(path: &Path, signal: AttitudeSource) -> Result<Vec<Telemet
     checked(TelemetryReader::open(path)?, path, signal)
 }
 
-/// Every row of `rows` with its attitude from `signal`, refusing non-finite analysis columns
-/// and an empty file; `path` only labels errors.
+/// Every row of `rows` with its attitude from `signal`, refusing non-finite analysis columns,
+/// ground the two-class analysis cannot score, and an empty file; `path` only labels errors.
 fn checked<R: Read>(
     rows: TelemetryReader<R>,
     path: &Path,
@@ -41,6 +42,13 @@ fn checked<R: Read>(
                 });
             }
             row = row.with_imu_attitude();
+        }
+        if !AREAS.contains(&row.area) {
+            return Err(EstimatorError::UnscoredKind {
+                path: path.to_path_buf(),
+                line,
+                kind: row.area.name(),
+            });
         }
         for (field, value) in fields.into_iter().zip([row.sin_pitch, row.theta_z]) {
             if !value.is_finite() {
@@ -76,6 +84,18 @@ mod tests {
             path,
             AttitudeSource::Truth,
         )
+    }
+
+    #[test]
+    fn ground_the_two_class_analysis_cannot_score_is_refused_with_its_line() {
+        let e = parse(&format!(
+            "{HEADER}\n0,0,flat,0,0,0,0,0,0,0,0,0,0,0,false,false,false,0,0\n0,1,slope,0,0,0,0,0,0,0,0,0,0,0,false,false,false,0,0\n"
+        ))
+        .expect_err("slope");
+        assert_eq!(
+            e.to_string(),
+            "t.csv: line 3 is on `slope` ground; the analysis scores SPEC S7's two kinds, flat and rough"
+        );
     }
 
     #[test]

@@ -91,7 +91,8 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         self._actions = np.zeros((self.num_envs, wire.ACT_DIM), dtype=np.float32)
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        """Every env's first observation, and `info["area"]` (0 flat, 1 rough): rebuilt from
+        """Every env's first observation, and `info["area"]` (the ground's code: 0 flat,
+        1 rough, 3 slope, 4 gravel): rebuilt from
         `seed` (an int s, or the per-env list [s, s+1, …] Gymnasium makes of it), or with
         none each env's next episode from a new pose. `options` is unused."""
         seed = _one_seed(seed, self.num_envs)
@@ -141,11 +142,15 @@ def _one_seed(seed, envs: int) -> int | None:
                      f"[s, s+1, …], not {seed!r}")
 
 
+#: The areas an env can drive in: the terrain kinds, then the mixed course.
+AREAS = ("flat", "rough", "slope", "gravel", "mixed")
+
+
 class Env(gymnasium.Env):
     """One env of lavatube's simulator as a `gymnasium.Env` (a one-env `VectorEnv` underneath).
 
-    config, overrides: as `VectorEnv`'s; area: where the env drives, `flat`, `rough` or
-    `mixed`.
+    config, overrides: as `VectorEnv`'s; area: where the env drives, `flat`, `rough`,
+    `slope`, `gravel` (the last two need an area of their kind in the config) or `mixed`.
     An episode's last step returns its last observation; the next `reset()` returns the next
     episode's first (which the sim has already begun, from where the robot stands, SPEC S3).
     """
@@ -155,11 +160,10 @@ class Env(gymnasium.Env):
     def __init__(self, config: str | os.PathLike, *, area: str = "flat",
                  overrides: dict[str, dict] | None = None, timeout: float = 60.0,
                  bin_dir: str | os.PathLike | None = None):
-        if area not in ("flat", "rough", "mixed"):
-            raise ValueError(f"area {area!r} is none of flat, rough, mixed")
+        if area not in AREAS:
+            raise ValueError(f"area {area!r} is none of {', '.join(AREAS)}")
         overrides = {section: dict(values) for section, values in (overrides or {}).items()}
-        overrides.setdefault("sim", {}).update(
-            {f"{a}-envs": int(a == area) for a in ("flat", "rough", "mixed")})
+        overrides.setdefault("sim", {}).update({f"{a}-envs": int(a == area) for a in AREAS})
         self._vec = VectorEnv(config, overrides=overrides, timeout=timeout, bin_dir=bin_dir)
         self.observation_space = self._vec.single_observation_space
         self.action_space = self._vec.single_action_space

@@ -287,5 +287,7 @@ fn area_color(area: AreaKind) -> [u8; 3] {
         AreaKind::Flat => [66, 135, 245],
         AreaKind::Rough => [235, 120, 40],
         AreaKind::Mixed => [90, 180, 90],
+        AreaKind::Slope => [140, 86, 75],
+        AreaKind::Gravel => [150, 150, 150],
     }
 }

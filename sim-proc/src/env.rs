@@ -98,6 +98,8 @@ pub struct Env {
     action: [f32; 2],
     /// The IMU and its filter, when [`SimConfig::simulates_imu`].
     sensing: Option<Sensing>,
+    /// The floor's friction and combine rule now (see [`floor_contact`]).
+    contact: (f32, CoefficientCombineRule),
 }
 
 impl Env {
@@ -105,12 +107,14 @@ impl Env {
     pub fn new(id: usize, cfg: &SimConfig, terrain: &SharedTerrain, seed: u64) -> Self {
         let area = cfg.area_of(id);
         let rect = match area {
-            AreaKind::Flat => cfg.terrain.flat_area,
-            AreaKind::Rough => cfg.terrain.rough_area,
             AreaKind::Mixed => cfg.terrain.mixed_area,
+            kind => cfg
+                .terrain
+                .area(kind)
+                .expect("a validated config has an area for every kind with envs"),
         };
         let mut rng = Rng::derive(seed, id as u64);
-        let (world, robot) = spawn(cfg, terrain, &rect, &mut rng);
+        let (world, robot) = spawn(cfg, terrain, area, &rect, &mut rng);
         let mut env = Self {
             id,
             area,
@@ -129,6 +133,7 @@ impl Env {
             sensing: cfg
                 .simulates_imu()
                 .then(|| Sensing::new(&cfg.imu, seed, id)),
+            contact: floor_contact(cfg, AreaKind::Flat),
         };
         env.placed();
         env.new_episode();
@@ -143,7 +148,9 @@ impl Env {
             .then(|| Rng::derive(self.course_seed, self.episode_index));
         if let Some(leg) = leg.as_mut().filter(|_| self.episode_index > 0) {
             let yaw = leg.range(-std::f64::consts::PI, std::f64::consts::PI);
-            let placed = build_world(&self.cfg, &self.terrain, self.episode.target, yaw);
+            let at = self.episode.target;
+            let ground = ground_at(&self.cfg, self.area, at);
+            let placed = build_world(&self.cfg, &self.terrain, at, yaw, ground);
             self.place(placed);
         }
         let start = self.pose().ground();
@@ -152,20 +159,10 @@ impl Env {
         self.episode = Episode::new(&self.cfg.task, start, target);
     }
 
-    /// The ground under the robot, flat or rough: the env's area, or on the mixed course
-    /// whichever part of it the robot is on. What telemetry reports as the true label.
+    /// The kind of ground under the robot: the env's area, or on the mixed course whichever
+    /// part of it the robot is on. What telemetry reports as the true label.
     pub fn ground(&self) -> AreaKind {
-        match self.area {
-            AreaKind::Mixed => {
-                let [x, _, z] = self.pose().pos;
-                if self.cfg.terrain.mixed_rough.contains(x, z, 0.0) {
-                    AreaKind::Rough
-                } else {
-                    AreaKind::Flat
-                }
-            }
-            area => area,
-        }
+        ground_at(&self.cfg, self.area, self.pose().ground())
     }
 
     pub fn pose(&self) -> PoseState {
@@ -203,7 +200,13 @@ impl Env {
 
     /// A fresh world with the robot at a random pose in the area (SPEC S3).
     fn respawn(&mut self) {
-        let placed = spawn(&self.cfg, &self.terrain, &self.rect, &mut self.rng);
+        let placed = spawn(
+            &self.cfg,
+            &self.terrain,
+            self.area,
+            &self.rect,
+            &mut self.rng,
+        );
         self.place(placed);
     }
 
@@ -212,8 +215,35 @@ impl Env {
         self.placed();
     }
 
-    /// Restarts the attitude filter on a robot just placed in a new world.
+    /// On the mixed course, gives the floor the contact of the kind of ground under the robot
+    /// (a slope's or gravel's friction) when that differs from the floor's. The whole floor
+    /// takes it, so for the tick a robot straddles two kinds both wheels meet the one under
+    /// its axle. An unchanged contact is left alone: touching the collider would reset its
+    /// contacts' solver state.
+    fn contact_ground(&mut self) {
+        if self.area != AreaKind::Mixed {
+            return;
+        }
+        let contact = floor_contact(&self.cfg, self.ground());
+        if contact == self.contact {
+            return;
+        }
+        self.contact = contact;
+        if let Some((_, floor)) = self
+            .world
+            .colliders
+            .iter_mut()
+            .find(|(_, c)| c.parent().is_none())
+        {
+            floor.set_friction(contact.0);
+            floor.set_friction_combine_rule(contact.1);
+        }
+    }
+
+    /// Notes the new world's floor contact and restarts the attitude filter on a robot just
+    /// placed in it.
     fn placed(&mut self) {
+        self.contact = floor_contact(&self.cfg, self.ground());
         if let Some(s) = self.sensing.as_mut() {
             s.place(
                 &self.world.bodies[self.robot.chassis],
@@ -302,6 +332,7 @@ impl Env {
             }
         });
         robot::set_wheel_speeds(&mut self.world, &self.robot, &self.cfg.robot, self.action);
+        self.contact_ground();
         let healthy = self.physics_substeps();
         self.tick += 1;
         let p = self.pose();
@@ -350,35 +381,60 @@ impl Env {
     }
 }
 
-/// A fresh world with the shared terrain and a robot at a random pose inside `rect`.
+/// The kind of ground at `at` for an env in `area`: the area's own, or on the mixed course
+/// the kind of the part there.
+fn ground_at(cfg: &SimConfig, area: AreaKind, at: [f64; 2]) -> AreaKind {
+    match area {
+        AreaKind::Mixed => cfg.terrain.mixed_kind_at(at[0], at[1]),
+        kind => kind,
+    }
+}
+
+/// The floor's friction and combine rule on ground of `kind`: the paper's 1.0, averaged with
+/// the wheel's, or the kind's own friction, of which a contact takes the lower with the
+/// wheel's (the skid's `Min` rule keeps its own low friction either way).
+fn floor_contact(cfg: &SimConfig, kind: AreaKind) -> (f32, CoefficientCombineRule) {
+    match cfg.terrain.friction_of(kind) {
+        Some(mu) => (mu as f32, CoefficientCombineRule::Min),
+        None => (1.0, CoefficientCombineRule::Average),
+    }
+}
+
+/// A fresh world with the shared terrain and a robot at a random pose inside `rect`, the
+/// area of an env in `area`.
 fn spawn(
     cfg: &SimConfig,
     terrain: &SharedTerrain,
+    area: AreaKind,
     rect: &Rect,
     rng: &mut Rng,
 ) -> (PhysicsWorld, Robot) {
     let x = rng.range(rect.x[0], rect.x[1]);
     let z = rng.range(rect.z[0], rect.z[1]);
     let yaw = rng.range(-std::f64::consts::PI, std::f64::consts::PI);
-    build_world(cfg, terrain, [x, z], yaw)
+    build_world(cfg, terrain, [x, z], yaw, ground_at(cfg, area, [x, z]))
 }
 
-/// A world with the shared terrain and the robot dropped at ground point `at` facing `yaw`.
+/// A world with the shared terrain, its contact that of `ground`, and the robot dropped at
+/// ground point `at` facing `yaw`.
 pub fn build_world(
     cfg: &SimConfig,
     terrain: &SharedTerrain,
     at: [f64; 2],
     yaw: f64,
+    ground: AreaKind,
 ) -> (PhysicsWorld, Robot) {
     let mut world = PhysicsWorld::new();
     world.integration_parameters.dt = cfg.physics_dt as f32;
     world.integration_parameters.length_unit = cfg.robot.length_unit as f32;
     world.integration_parameters.num_solver_iterations = cfg.robot.solver_iterations;
     let c = terrain.centre;
+    let (friction, rule) = floor_contact(cfg, ground);
     world.insert_collider(
         ColliderBuilder::new(terrain.shape.clone())
             .translation(Vector::new(c[0] as f32, c[1] as f32, c[2] as f32))
-            .friction(1.0)
+            .friction(friction)
+            .friction_combine_rule(rule)
             .collision_groups(InteractionGroups::new(
                 TERRAIN_GROUP,
                 robot::ROBOT_GROUP,
@@ -437,7 +493,8 @@ mod tests {
         assert_eq!(bad.episode_index, episode + 1);
         // Respawned inside its area with a finite pose, and it keeps running.
         let p = bad.pose();
-        assert!(p.is_finite() && cfg.terrain.flat_area.contains(p.pos[0], p.pos[2], 0.0));
+        let flat = cfg.terrain.area(AreaKind::Flat).expect("default");
+        assert!(p.is_finite() && flat.contains(p.pos[0], p.pos[2], 0.0));
         assert_eq!(bad.step([1.0, 1.0]).faults, 1);
         assert!(
             bad.observe()
@@ -653,7 +710,7 @@ mod tests {
                 let env = Env::new(id, &cfg, &terrain, 3);
                 let [x, _, z] = env.pose().pos;
                 assert!(cfg.terrain.mixed_area.contains(x, z, 0.0));
-                let under = if cfg.terrain.mixed_rough.contains(x, z, 0.0) {
+                let under = if cfg.terrain.mixed_parts[0].rect().contains(x, z, 0.0) {
                     AreaKind::Rough
                 } else {
                     AreaKind::Flat
@@ -665,5 +722,35 @@ mod tests {
         for kind in [AreaKind::Flat, AreaKind::Rough] {
             assert!(grounds.iter().any(|(g, _)| *g == kind), "{grounds:?}");
         }
+    }
+
+    #[test]
+    fn a_mixed_course_env_meets_the_friction_of_the_ground_under_it() {
+        let mut cfg = SimConfig {
+            flat_envs: 0,
+            mixed_envs: 16,
+            ..SimConfig::default()
+        };
+        cfg.terrain.mixed_parts[0].kind = AreaKind::Slope;
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
+        let mut seen = Vec::new();
+        for id in 0..16 {
+            let mut env = Env::new(id, &cfg, &terrain, 3);
+            env.step([0.0, 0.0]);
+            let floor = env
+                .world
+                .colliders
+                .iter()
+                .find(|(_, c)| c.parent().is_none())
+                .map(|(_, c)| (c.friction(), c.friction_combine_rule()))
+                .expect("a floor");
+            let want = match env.ground() {
+                AreaKind::Slope => (0.3, CoefficientCombineRule::Min),
+                _ => (1.0, CoefficientCombineRule::Average),
+            };
+            assert_eq!(floor, want, "env {id} on {:?}", env.ground());
+            seen.push(env.ground());
+        }
+        assert!(seen.contains(&AreaKind::Slope) && seen.contains(&AreaKind::Flat));
     }
 }

@@ -1,7 +1,7 @@
 //! Physics scene tests: the robot against physical expectations (SPEC S2), and the
 //! simulator's determinism and fault handling.
 
-use common::config::{SimConfig, TerrainConfig};
+use common::config::{AreaKind, SimConfig, TerrainConfig};
 use sim_proc::controllers::{GoToController, RandomController};
 use sim_proc::env::{SharedTerrain, build_world, unity_euler};
 use sim_proc::robot;
@@ -27,7 +27,7 @@ fn plane() -> (SimConfig, SharedTerrain) {
 /// chassis pose after every physics step.
 fn drive_const(speeds: [f32; 2], settle_s: f64, drive_s: f64) -> Vec<(glam::Vec3, glam::Quat)> {
     let (cfg, terrain) = plane();
-    let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0);
+    let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0, AreaKind::Flat);
     let steps = |s: f64| (s / cfg.physics_dt).round() as usize;
     for _ in 0..steps(settle_s) {
         world.step();

@@ -1,7 +1,7 @@
 //! A run's map (`map.png`): drawn from the sim's `track.csv` when the run ends, and again by
 //! `lavatube map` (from the track, or from a telemetry CSV).
 
-use common::config::{Rect, SimConfig};
+use common::config::{AreaKind, Rect, SimConfig};
 use common::terrain::Terrain;
 use common::track::TrackPoint;
 use std::path::Path;
@@ -9,17 +9,14 @@ use std::path::Path;
 /// The areas the sim's envs use, named as the map labels them.
 fn areas(sim: &SimConfig) -> Vec<(&'static str, Rect)> {
     let t = &sim.terrain;
-    let mut areas = Vec::new();
-    if sim.flat_envs > 0 {
-        areas.push(("flat", t.flat_area));
-    }
-    if sim.rough_envs > 0 {
-        areas.push(("rough", t.rough_area));
-    }
-    if sim.mixed_envs > 0 {
-        areas.push(("mixed course", t.mixed_area));
-    }
-    areas
+    sim.env_counts()
+        .into_iter()
+        .filter(|(_, n)| *n > 0)
+        .filter_map(|(area, _)| match area {
+            AreaKind::Mixed => Some(("mixed course", t.mixed_area)),
+            kind => t.area(kind).map(|r| (kind.name(), r)),
+        })
+        .collect()
 }
 
 /// Draws `track` on the floor of `sim` to `out`; returns the image size.

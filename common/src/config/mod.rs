@@ -34,7 +34,9 @@ pub use run::{Acting, LearnMode, PolicySlot, RunConfig};
 pub use sim::{AreaKind, Rect, SimConfig};
 pub use supervise::{Restart, RestartPolicy, SuperviseConfig};
 pub use task::{EpisodeStart, TaskConfig};
-pub use terrain::{HeightmapConfig, TerrainCollider, TerrainConfig};
+pub use terrain::{
+    Area, GravelConfig, HeightmapConfig, SlopeConfig, TerrainCollider, TerrainConfig,
+};
 
 use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};

@@ -8,8 +8,9 @@ use super::{
 };
 use serde::{Deserialize, Serialize};
 
-/// Which area an env lives in: SPEC S1's two training areas, or the mixed course (our
-/// extension, for the switching evaluation), flat ground that turns rough part-way.
+/// Which area an env lives in: a terrain kind's area (SPEC S1's flat and rough, and our
+/// `slope` and `gravel`), or the mixed course (our extension, for the switching evaluation),
+/// flat ground that crosses other kinds part-way.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum AreaKind {
@@ -17,16 +18,28 @@ pub enum AreaKind {
     Flat,
     Rough,
     Mixed,
+    Slope,
+    Gravel,
 }
 
 impl AreaKind {
-    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed. Telemetry never carries 2: a mixed
-    /// env reports the ground under the robot.
+    /// The terrain kinds, in code order (every area but the mixed course).
+    pub const KINDS: [AreaKind; 4] = [
+        AreaKind::Flat,
+        AreaKind::Rough,
+        AreaKind::Slope,
+        AreaKind::Gravel,
+    ];
+
+    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed, 3 slope, 4 gravel. Telemetry never
+    /// carries 2: a mixed env reports the ground under the robot.
     pub fn code(self) -> u8 {
         match self {
             AreaKind::Flat => 0,
             AreaKind::Rough => 1,
             AreaKind::Mixed => 2,
+            AreaKind::Slope => 3,
+            AreaKind::Gravel => 4,
         }
     }
 
@@ -35,6 +48,8 @@ impl AreaKind {
             AreaKind::Flat => "flat",
             AreaKind::Rough => "rough",
             AreaKind::Mixed => "mixed",
+            AreaKind::Slope => "slope",
+            AreaKind::Gravel => "gravel",
         }
     }
 }
@@ -66,7 +81,13 @@ pub struct SimConfig {
     pub flat_envs: usize,
     /// Envs in the rough area. 0 ..= 1024. Default 0.
     pub rough_envs: usize,
-    /// Envs on the mixed course (`terrain.mixed-area`), after the rough ones. 0 ..= 1024.
+    /// Envs in the slope area (not in the paper; needs one in `terrain.areas`), after the
+    /// rough ones. 0 ..= 1024. Default 0.
+    pub slope_envs: usize,
+    /// Envs in the gravel area (not in the paper; needs one in `terrain.areas`), after the
+    /// slope ones. 0 ..= 1024. Default 0.
+    pub gravel_envs: usize,
+    /// Envs on the mixed course (`terrain.mixed-area`), after all the others. 0 ..= 1024.
     /// Default 0.
     pub mixed_envs: usize,
     /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
@@ -107,6 +128,8 @@ impl Default for SimConfig {
         Self {
             flat_envs: 9,
             rough_envs: 0,
+            slope_envs: 0,
+            gravel_envs: 0,
             mixed_envs: 0,
             threads: 2,
             acting: Acting::General,
@@ -131,39 +154,56 @@ impl SimConfig {
         self.observation == AttitudeSource::Imu || self.imu.simulate
     }
 
+    /// The env counts per area, in env order: flat, rough, slope, gravel, mixed.
+    pub fn env_counts(&self) -> [(AreaKind, usize); 5] {
+        [
+            (AreaKind::Flat, self.flat_envs),
+            (AreaKind::Rough, self.rough_envs),
+            (AreaKind::Slope, self.slope_envs),
+            (AreaKind::Gravel, self.gravel_envs),
+            (AreaKind::Mixed, self.mixed_envs),
+        ]
+    }
+
     pub fn num_envs(&self) -> usize {
-        self.flat_envs + self.rough_envs + self.mixed_envs
+        self.env_counts().iter().map(|(_, n)| n).sum()
     }
 
-    /// The area of env `i`: flat envs first, then rough, then mixed.
+    /// The area of env `i`: flat envs first, then rough, slope, gravel and mixed (an index
+    /// past the last env counts as mixed).
     pub fn area_of(&self, env: usize) -> AreaKind {
-        if env < self.flat_envs {
-            AreaKind::Flat
-        } else if env < self.flat_envs + self.rough_envs {
-            AreaKind::Rough
-        } else {
-            AreaKind::Mixed
+        let mut first = 0;
+        for (area, n) in self.env_counts() {
+            first += n;
+            if env < first {
+                return area;
+            }
         }
+        AreaKind::Mixed
     }
 
-    /// "4 flat + 4 rough envs", with "+ n mixed" when the mixed course has envs.
+    /// "4 flat + 4 rough envs", with "+ n slope", "+ n gravel", "+ n mixed" for the areas
+    /// that have envs.
     pub fn describe_envs(&self) -> String {
-        let mixed = if self.mixed_envs > 0 {
-            format!(" + {} mixed", self.mixed_envs)
-        } else {
-            String::new()
-        };
+        let others: String = self.env_counts()[2..]
+            .iter()
+            .filter(|(_, n)| *n > 0)
+            .map(|(area, n)| format!(" + {n} {}", area.name()))
+            .collect();
         format!(
-            "{} flat + {} rough{mixed} envs",
+            "{} flat + {} rough{others} envs",
             self.flat_envs, self.rough_envs
         )
     }
 
     /// `n` envs, all in `area`.
     pub fn only_in(&mut self, area: AreaKind, n: usize) {
-        self.flat_envs = if area == AreaKind::Flat { n } else { 0 };
-        self.rough_envs = if area == AreaKind::Rough { n } else { 0 };
-        self.mixed_envs = if area == AreaKind::Mixed { n } else { 0 };
+        let count = |a: AreaKind| if a == area { n } else { 0 };
+        self.flat_envs = count(AreaKind::Flat);
+        self.rough_envs = count(AreaKind::Rough);
+        self.slope_envs = count(AreaKind::Slope);
+        self.gravel_envs = count(AreaKind::Gravel);
+        self.mixed_envs = count(AreaKind::Mixed);
     }
 
     /// Decision step, seconds (0.1 by default, SPEC S2).
@@ -175,13 +215,29 @@ impl SimConfig {
     pub(super) fn validate(&self) -> Result<(), ConfigError> {
         count_in("sim.flat-envs", self.flat_envs, 0, 1024)?;
         count_in("sim.rough-envs", self.rough_envs, 0, 1024)?;
+        count_in("sim.slope-envs", self.slope_envs, 0, 1024)?;
+        count_in("sim.gravel-envs", self.gravel_envs, 0, 1024)?;
         count_in("sim.mixed-envs", self.mixed_envs, 0, 1024)?;
         if self.num_envs() == 0 {
             return Err(invalid(
                 "sim.flat-envs",
                 self.flat_envs,
-                "flat-envs + rough-envs + mixed-envs must be at least 1",
+                "the envs of all areas (flat-envs, rough-envs, slope-envs, gravel-envs, mixed-envs) must be at least 1",
             ));
+        }
+        for (field, area, n) in [
+            ("sim.flat-envs", AreaKind::Flat, self.flat_envs),
+            ("sim.rough-envs", AreaKind::Rough, self.rough_envs),
+            ("sim.slope-envs", AreaKind::Slope, self.slope_envs),
+            ("sim.gravel-envs", AreaKind::Gravel, self.gravel_envs),
+        ] {
+            if n > 0 && self.terrain.area(area).is_none() {
+                return Err(invalid(
+                    field,
+                    n,
+                    format!("needs a `{}` area in sim.terrain.areas", area.name()),
+                ));
+            }
         }
         count_in("sim.switch-dwell", self.switch_dwell, 1, 10_000)?;
         count_in(
@@ -211,13 +267,19 @@ mod tests {
         let s = SimConfig {
             flat_envs: 2,
             rough_envs: 1,
+            slope_envs: 1,
+            gravel_envs: 2,
             mixed_envs: 1,
             ..SimConfig::default()
         };
-        use AreaKind::{Flat, Mixed, Rough};
+        use AreaKind::{Flat, Gravel, Mixed, Rough, Slope};
         assert_eq!(
-            (0..4).map(|i| s.area_of(i)).collect::<Vec<_>>(),
-            vec![Flat, Flat, Rough, Mixed]
+            (0..7).map(|i| s.area_of(i)).collect::<Vec<_>>(),
+            vec![Flat, Flat, Rough, Slope, Gravel, Gravel, Mixed]
+        );
+        assert_eq!(
+            s.describe_envs(),
+            "2 flat + 1 rough + 1 slope + 2 gravel + 1 mixed envs"
         );
         let mut only = s.clone();
         only.only_in(Mixed, 3);

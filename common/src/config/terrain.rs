@@ -1,7 +1,7 @@
 //! `[sim.terrain]`: the procedural lava-tube floor, or a measured heightmap in its place.
 
 use super::range::{count_in, in_range, invalid};
-use super::{ConfigError, Rect};
+use super::{AreaKind, ConfigError, Rect};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -11,17 +11,18 @@ use std::path::PathBuf;
 pub struct TerrainConfig {
     /// Seed of the procedural floor (independent of the run seed, so runs can share a floor).
     pub seed: u64,
-    /// Flat area rectangle. Default x ∈ [-2.5, 0.5], z ∈ [-1.0, 0.5] (SPEC S1).
-    pub flat_area: Rect,
-    /// Rough area rectangle. Default x ∈ [-9.0, -7.5], z ∈ [1.5, 5.0] (SPEC S1).
-    pub rough_area: Rect,
-    /// The mixed course (not in the paper): a strip whose robots cross between flat and rough
-    /// ground. Default x ∈ [-6.0, -3.0], z ∈ [2.25, 3.25], between the two areas.
+    /// The training areas, at most one per terrain kind (`flat`, `rough`, `slope`, `gravel`),
+    /// each `{ kind, x = [min, max], z = [min, max] }`. Default SPEC S1's two: flat at
+    /// x ∈ [-2.5, 0.5], z ∈ [-1.0, 0.5] and rough at x ∈ [-9.0, -7.5], z ∈ [1.5, 5.0].
+    pub areas: Vec<Area>,
+    /// The mixed course (not in the paper): a strip whose robots cross between terrain kinds.
+    /// Default x ∈ [-6.0, -3.0], z ∈ [2.25, 3.25], between the two areas.
     pub mixed_area: Rect,
-    /// The rough part of the mixed course: its bumps are the rough area's, with the same
-    /// `blend` at the edge; the rest of the course is flat. Default x ∈ [-6.0, -4.5],
-    /// z ∈ [2.25, 3.25] (the half towards the rough area).
-    pub mixed_rough: Rect,
+    /// The mixed course's parts that are not flat, each `{ kind, x, z }`, with the ground of
+    /// that kind's area (the same `blend` at their edges); the rest of the course is flat.
+    /// Default one rough part, x ∈ [-6.0, -4.5], z ∈ [2.25, 3.25] (the half towards the rough
+    /// area).
+    pub mixed_parts: Vec<Area>,
     /// Heightfield cell size, metres. [0.005, 0.5]. Default 0.04.
     pub cell_size: f64,
     /// How the physics collides with the floor: `heightfield` (parry's, the grid itself, as
@@ -47,6 +48,10 @@ pub struct TerrainConfig {
     pub roughness_scale: f64,
     /// Width of the blend between areas and the surrounding floor, metres. [0, 5]. Default 0.3.
     pub blend: f64,
+    /// The `slope` kind's ground.
+    pub slope: SlopeConfig,
+    /// The `gravel` kind's ground.
+    pub gravel: GravelConfig,
     /// A measured heightmap to use instead of the procedural floor.
     pub heightmap: Option<HeightmapConfig>,
 }
@@ -55,22 +60,27 @@ impl Default for TerrainConfig {
     fn default() -> Self {
         Self {
             seed: 2026,
-            flat_area: Rect {
-                x: [-2.5, 0.5],
-                z: [-1.0, 0.5],
-            },
-            rough_area: Rect {
-                x: [-9.0, -7.5],
-                z: [1.5, 5.0],
-            },
+            areas: vec![
+                Area {
+                    kind: AreaKind::Flat,
+                    x: [-2.5, 0.5],
+                    z: [-1.0, 0.5],
+                },
+                Area {
+                    kind: AreaKind::Rough,
+                    x: [-9.0, -7.5],
+                    z: [1.5, 5.0],
+                },
+            ],
             mixed_area: Rect {
                 x: [-6.0, -3.0],
                 z: [2.25, 3.25],
             },
-            mixed_rough: Rect {
+            mixed_parts: vec![Area {
+                kind: AreaKind::Rough,
                 x: [-6.0, -4.5],
                 z: [2.25, 3.25],
-            },
+            }],
             cell_size: 0.04,
             collider: TerrainCollider::Heightfield,
             border: 1.0,
@@ -81,7 +91,76 @@ impl Default for TerrainConfig {
             rough_octaves: 5,
             roughness_scale: 0.8,
             blend: 0.3,
+            slope: SlopeConfig::default(),
+            gravel: GravelConfig::default(),
             heightmap: None,
+        }
+    }
+}
+
+/// One area of a terrain kind: a rectangle on the ground.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case")]
+pub struct Area {
+    /// `flat`, `rough`, `slope` or `gravel`.
+    pub kind: AreaKind,
+    /// [min, max] along X, metres.
+    pub x: [f64; 2],
+    /// [min, max] along Z, metres.
+    pub z: [f64; 2],
+}
+
+impl Area {
+    pub fn rect(&self) -> Rect {
+        Rect {
+            x: self.x,
+            z: self.z,
+        }
+    }
+}
+
+/// `[sim.terrain.slope]`: loose regolith on an incline. Each slope area or part is a
+/// four-sided pyramid rising from its edges at `incline-deg`, so wherever a robot stands on it
+/// the ground tilts by that angle, uphill, downhill or across, by heading.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct SlopeConfig {
+    /// The incline, degrees. [0, 30]. Default 12.
+    pub incline_deg: f64,
+    /// The wheels' friction on it: a wheel contact takes the lower of this and
+    /// `robot.wheel-friction` (loose regolith). [0, 5]. Default 0.3.
+    pub friction: f64,
+}
+
+impl Default for SlopeConfig {
+    fn default() -> Self {
+        Self {
+            incline_deg: 12.0,
+            friction: 0.3,
+        }
+    }
+}
+
+/// `[sim.terrain.gravel]`: a field of small broken rock, bumps far smaller and denser than
+/// the rough area's. Needs a `cell-size` of at most a quarter of `spacing` to be resolved.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct GravelConfig {
+    /// Height of the tallest stones, metres (each is 40–100 % of it). [0, 0.05]. Default 0.01.
+    pub amplitude: f64,
+    /// Distance between neighbouring stones, metres: one stone per square of this side, at
+    /// a random spot in it, 70–100 % of this across. [0.01, 1]. Default 0.05.
+    pub spacing: f64,
+    /// The wheels' friction on it, as the slope's. [0, 5]. Default 0.8.
+    pub friction: f64,
+}
+
+impl Default for GravelConfig {
+    fn default() -> Self {
+        Self {
+            amplitude: 0.01,
+            spacing: 0.05,
+            friction: 0.8,
         }
     }
 }
@@ -115,18 +194,70 @@ fn one() -> f64 {
 }
 
 impl TerrainConfig {
+    /// The rectangle of the `kind` area, if the world has one.
+    pub fn area(&self, kind: AreaKind) -> Option<Rect> {
+        self.areas.iter().find(|a| a.kind == kind).map(Area::rect)
+    }
+
+    /// The terrain kind of the ground at `(x, z)` on the mixed course: the part it is in, or
+    /// flat between the parts.
+    pub fn mixed_kind_at(&self, x: f64, z: f64) -> AreaKind {
+        self.mixed_parts
+            .iter()
+            .find(|p| p.rect().contains(x, z, 0.0))
+            .map_or(AreaKind::Flat, |p| p.kind)
+    }
+
+    /// Every rectangle whose ground is of `kind`: its area and its mixed-course parts.
+    pub fn rects_of(&self, kind: AreaKind) -> impl Iterator<Item = Rect> + '_ {
+        self.areas
+            .iter()
+            .chain(&self.mixed_parts)
+            .filter(move |a| a.kind == kind)
+            .map(Area::rect)
+    }
+
+    /// The wheels' friction on ground of `kind`: `None` for SPEC S1's flat and rough ground
+    /// (the paper's contact, the floor's 1.0 averaged with the wheel's), the kind's setting
+    /// otherwise.
+    pub fn friction_of(&self, kind: AreaKind) -> Option<f64> {
+        match kind {
+            AreaKind::Slope => Some(self.slope.friction),
+            AreaKind::Gravel => Some(self.gravel.friction),
+            AreaKind::Flat | AreaKind::Rough | AreaKind::Mixed => None,
+        }
+    }
+
     pub(super) fn validate(&self) -> Result<(), ConfigError> {
-        for (field, a) in [
-            ("sim.terrain.flat-area", self.flat_area),
-            ("sim.terrain.rough-area", self.rough_area),
-            ("sim.terrain.mixed-area", self.mixed_area),
-            ("sim.terrain.mixed-rough", self.mixed_rough),
+        check_rect("sim.terrain.mixed-area", self.mixed_area)?;
+        for (field, list) in [
+            ("sim.terrain.areas", &self.areas),
+            ("sim.terrain.mixed-parts", &self.mixed_parts),
         ] {
-            if !(a.x[0] < a.x[1] && a.z[0] < a.z[1])
-                || a.x.iter().chain(&a.z).any(|v| !v.is_finite())
-            {
-                return Err(invalid(field, a, "needs finite min < max on x and z"));
+            for (i, a) in list.iter().enumerate() {
+                check_rect(field, a.rect())?;
+                if a.kind == AreaKind::Mixed {
+                    return Err(invalid(
+                        field,
+                        a.kind.name(),
+                        "`mixed` is the course (sim.terrain.mixed-area), not a terrain kind",
+                    ));
+                }
+                if field == "sim.terrain.areas" && list[..i].iter().any(|b| b.kind == a.kind) {
+                    return Err(invalid(
+                        field,
+                        a.kind.name(),
+                        "holds at most one area per kind",
+                    ));
+                }
             }
+        }
+        if self.areas.is_empty() {
+            return Err(invalid(
+                "sim.terrain.areas",
+                &self.areas,
+                "needs at least one area",
+            ));
         }
         in_range("sim.terrain.cell-size", self.cell_size, 0.005, 0.5)?;
         in_range("sim.terrain.border", self.border, 0.5, 10.0)?;
@@ -157,11 +288,39 @@ impl TerrainConfig {
             2.0,
         )?;
         in_range("sim.terrain.blend", self.blend, 0.0, 5.0)?;
+        in_range(
+            "sim.terrain.slope.incline-deg",
+            self.slope.incline_deg,
+            0.0,
+            30.0,
+        )?;
+        in_range("sim.terrain.slope.friction", self.slope.friction, 0.0, 5.0)?;
+        in_range(
+            "sim.terrain.gravel.amplitude",
+            self.gravel.amplitude,
+            0.0,
+            0.05,
+        )?;
+        in_range("sim.terrain.gravel.spacing", self.gravel.spacing, 0.01, 1.0)?;
+        in_range(
+            "sim.terrain.gravel.friction",
+            self.gravel.friction,
+            0.0,
+            5.0,
+        )?;
         if let Some(h) = &self.heightmap {
             h.validate()?;
         }
         Ok(())
     }
+}
+
+/// A rectangle needs finite bounds, min < max on both axes.
+fn check_rect(field: &'static str, a: Rect) -> Result<(), ConfigError> {
+    if !(a.x[0] < a.x[1] && a.z[0] < a.z[1]) || a.x.iter().chain(&a.z).any(|v| !v.is_finite()) {
+        return Err(invalid(field, a, "needs finite min < max on x and z"));
+    }
+    Ok(())
 }
 
 impl HeightmapConfig {

@@ -157,3 +157,30 @@ fn a_config_extends_another_and_overrides_only_its_own_keys() {
     let e = Config::load(&missing).expect_err("missing base");
     assert!(e.to_string().contains("nope.toml"), "{e}");
 }
+
+#[test]
+fn terrain_areas_are_a_list_of_kinds_and_envs_need_their_kinds_area() {
+    let e = parse("[sim]\nslope-envs = 2\n").expect_err("no slope area");
+    assert_eq!(
+        e.to_string(),
+        "config field `sim.slope-envs` = 2: needs a `slope` area in sim.terrain.areas"
+    );
+    let two_flat = "[sim.terrain]\nareas = [{ kind = \"flat\", x = [0, 1], z = [0, 1] }, { kind = \"flat\", x = [2, 3], z = [0, 1] }]\n";
+    let e = parse(two_flat).expect_err("two flat areas");
+    assert_eq!(
+        e.to_string(),
+        "config field `sim.terrain.areas` = \"flat\": holds at most one area per kind"
+    );
+    let mixed = "[sim.terrain]\nmixed-parts = [{ kind = \"mixed\", x = [0, 1], z = [0, 1] }]\n";
+    let e = parse(mixed).expect_err("mixed is no kind");
+    assert!(e.to_string().contains("not a terrain kind"), "{e}");
+    let upside_down = "[sim.terrain]\nareas = [{ kind = \"flat\", x = [1, 0], z = [0, 1] }]\n";
+    let e = parse(upside_down).expect_err("min > max");
+    assert!(e.to_string().contains("min < max"), "{e}");
+    let c = parse(
+        "[sim]\nflat-envs = 1\ngravel-envs = 2\n[sim.terrain]\nareas = [{ kind = \"flat\", x = [0, 1], z = [0, 1] }, { kind = \"gravel\", x = [2, 3], z = [0, 1] }]\n",
+    )
+    .expect("gravel world");
+    assert_eq!(c.sim.num_envs(), 3);
+    assert_eq!(c.sim.area_of(2), AreaKind::Gravel);
+}
