@@ -87,6 +87,8 @@ pub struct Series {
     pub sin_roll: Vec<f64>,
     /// The robot's X-Z position, metres, for the stationary gate (`estimator.min-speed`).
     pub xz: Vec<[f64; 2]>,
+    /// The wheels' mean command, rad/s, for the slip feature.
+    pub command: Vec<f64>,
 }
 
 /// Splits rows (any interleaving of envs) into series and drops each one's first `warmup`
@@ -108,6 +110,7 @@ pub fn split_series(rows: &[TelemetryRow], warmup: usize) -> Vec<Series> {
                 sin_pitch: Vec::new(),
                 sin_roll: Vec::new(),
                 xz: Vec::new(),
+                command: Vec::new(),
             };
             if let Some((_, finished)) = open.insert(row.env, (row.tick, fresh)) {
                 done.push(finished);
@@ -118,6 +121,7 @@ pub fn split_series(rows: &[TelemetryRow], warmup: usize) -> Vec<Series> {
             s.sin_pitch.push(row.sin_pitch);
             s.sin_roll.push(row.theta_z.sin());
             s.xz.push([row.x, row.z]);
+            s.command.push(0.5 * (row.action_left + row.action_right));
         }
     }
     done.extend(open.into_values().map(|(_, s)| s));
@@ -129,6 +133,7 @@ pub fn split_series(rows: &[TelemetryRow], warmup: usize) -> Vec<Series> {
             s.sin_pitch.drain(..warmup);
             s.sin_roll.drain(..warmup);
             s.xz.drain(..warmup);
+            s.command.drain(..warmup);
             s
         })
         .collect();
@@ -353,6 +358,7 @@ mod tests {
                 sin_pitch: vec![0.0, 0.0, 0.0],
                 sin_roll: vec![0.0; 3],
                 xz: vec![[0.0; 2]; 3],
+                command: vec![0.0; 3],
             },
             Series {
                 env: 0,
@@ -361,6 +367,7 @@ mod tests {
                 sin_pitch: vec![1.0, 1.0, 1.0],
                 sin_roll: vec![0.0; 3],
                 xz: vec![[0.0; 2]; 3],
+                command: vec![0.0; 3],
             },
         ];
         // Windows of 2 inside each constant series: all zero; a spanning window would be 0.707.
@@ -396,6 +403,7 @@ mod tests {
             xz: [0.0, 0.01, 0.02, 0.03, 0.03, 0.03]
                 .map(|x| [x, 0.0])
                 .to_vec(),
+            command: vec![0.0; 6],
         };
         // Windows of 3: paths 2, 2, 1, 0 cm. A 0.75 cm/step gate needs 1.5 cm.
         let wv = window_values(std::slice::from_ref(&s), 3, 0.0075).expect("values");
@@ -409,6 +417,7 @@ mod tests {
         );
         let still = Series {
             xz: vec![[0.0; 2]; 6],
+            command: vec![0.0; 6],
             ..s
         };
         assert!(matches!(

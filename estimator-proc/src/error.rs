@@ -22,7 +22,7 @@ pub enum EstimatorError {
     )]
     NoImu { path: PathBuf, line: u64 },
     #[error(
-        "{path}: line {line} is on `{kind}` ground; the analysis scores SPEC S7's two kinds, flat and rough"
+        "{path}: line {line} is on `{kind}` ground; the analysis scores SPEC S7's two kinds, flat and rough (`estimator-proc kinds` scores every kind)"
     )]
     UnscoredKind {
         path: PathBuf,

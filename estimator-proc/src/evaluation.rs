@@ -235,6 +235,7 @@ mod tests {
             sin_pitch: (0..n).map(|_| sd * rng.normal()).collect(),
             sin_roll: vec![0.0; n],
             xz: vec![[0.0; 2]; n],
+            command: vec![0.0; n],
         }
     }
 

@@ -303,36 +303,49 @@ pub fn log_sum_exp(v: &[f64]) -> f64 {
 pub fn fit(data: &[f64], opts: &FitOptions) -> Result<FitReport> {
     check_data(data, opts.components)?;
     let spread = variance(data);
-    let mut best: Option<FitReport> = None;
-    let mut last_error = None;
-    let mut ok = 0;
-    for restart in 0..opts.restarts.max(1) {
-        let mut rng = common::Rng::derive(opts.seed, restart as u64);
-        let outcome = kmeans_pp(data, opts.components, spread, opts.var_floor, &mut rng)
-            .and_then(|init| run_em(data, init, opts));
-        match outcome {
-            Ok(report) => {
+    let (mut report, ok) = best_of_restarts(
+        opts.restarts,
+        opts.seed,
+        |rng| {
+            kmeans_pp(data, opts.components, spread, opts.var_floor, rng)
+                .and_then(|init| run_em(data, init, opts))
+        },
+        |r| r.log_likelihood,
+    )?;
+    report.restarts_ok = ok;
+    Ok(report)
+}
+
+/// Runs `attempt` once per restart (at least one), restart r with stream r of `seed`; the
+/// outcome of the highest `log_likelihood` wins (the earliest among equals), returned with
+/// how many restarts succeeded. Fails with the last failure's reason when none did.
+pub fn best_of_restarts<T>(
+    restarts: usize,
+    seed: u64,
+    mut attempt: impl FnMut(&mut common::Rng) -> Result<T>,
+    log_likelihood: impl Fn(&T) -> f64,
+) -> Result<(T, usize)> {
+    let mut best: Option<T> = None;
+    let (mut ok, mut last_error) = (0, None);
+    for restart in 0..restarts.max(1) {
+        let mut rng = common::Rng::derive(seed, restart as u64);
+        match attempt(&mut rng) {
+            Ok(outcome) => {
                 ok += 1;
                 if best
                     .as_ref()
-                    .is_none_or(|b| report.log_likelihood > b.log_likelihood)
+                    .is_none_or(|b| log_likelihood(&outcome) > log_likelihood(b))
                 {
-                    best = Some(report);
+                    best = Some(outcome);
                 }
             }
             Err(e) => last_error = Some(e),
         }
     }
-    match best {
-        Some(mut report) => {
-            report.restarts_ok = ok;
-            Ok(report)
-        }
-        None => Err(EstimatorError::NoFit {
-            restarts: opts.restarts.max(1),
-            reason: last_error.map_or_else(|| "no restart ran".into(), |e| e.to_string()),
-        }),
-    }
+    best.map(|b| (b, ok)).ok_or_else(|| EstimatorError::NoFit {
+        restarts: restarts.max(1),
+        reason: last_error.map_or_else(|| "no restart ran".into(), |e| e.to_string()),
+    })
 }
 
 /// One EM run started from `start` (a warm start, e.g. the previous model of the online
@@ -376,6 +389,21 @@ fn variance(data: &[f64]) -> f64 {
     data.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / n
 }
 
+/// k-means++'s next centre: point i drawn with probability ∝ `d2[i]`, its squared distance
+/// to the nearest centre so far (some `d2` must be positive).
+pub fn draw_by_distance(d2: &[f64], rng: &mut common::Rng) -> usize {
+    let total: f64 = d2.iter().sum();
+    let target = rng.uniform() * total;
+    let mut acc = 0.0;
+    for (i, &d) in d2.iter().enumerate() {
+        acc += d;
+        if acc > target && d > 0.0 {
+            return i;
+        }
+    }
+    d2.iter().rposition(|&d| d > 0.0).unwrap_or(0)
+}
+
 /// k-means++ seeding followed by one hard assignment to the nearest centre.
 fn kmeans_pp(
     data: &[f64],
@@ -387,19 +415,8 @@ fn kmeans_pp(
     let mut centres = vec![data[rng.below(data.len())]];
     let mut d2: Vec<f64> = data.iter().map(|x| (x - centres[0]).powi(2)).collect();
     while centres.len() < k {
-        let total: f64 = d2.iter().sum();
         // check_data guarantees k distinct values, so some point is off every centre.
-        let target = rng.uniform() * total;
-        let mut acc = 0.0;
-        let mut pick = d2.iter().rposition(|&d| d > 0.0).unwrap_or(0);
-        for (i, &d) in d2.iter().enumerate() {
-            acc += d;
-            if acc > target && d > 0.0 {
-                pick = i;
-                break;
-            }
-        }
-        let c = data[pick];
+        let c = data[draw_by_distance(&d2, rng)];
         centres.push(c);
         for (d, x) in d2.iter_mut().zip(data) {
             *d = d.min((x - c).powi(2));

@@ -9,15 +9,21 @@
 
 use crate::analysis::AREAS;
 use crate::{EstimatorError, Result};
-use common::TelemetryRow;
 use common::config::AttitudeSource;
 use common::telemetry::TelemetryReader;
+use common::{AreaKind, TelemetryRow};
 use std::io::Read;
 use std::path::Path;
 
-/// Reads and checks a telemetry CSV file, its attitude taken from `signal`.
+/// Reads and checks a telemetry CSV file of flat and rough ground (SPEC S7's two kinds), its
+/// attitude taken from `signal`.
 pub fn read_telemetry(path: &Path, signal: AttitudeSource) -> Result<Vec<TelemetryRow>> {
-    checked(TelemetryReader::open(path)?, path, signal)
+    checked(TelemetryReader::open(path)?, path, signal, &AREAS)
+}
+
+/// [`read_telemetry`] for ground of every kind (`estimator-proc kinds`).
+pub fn read_any_kind(path: &Path, signal: AttitudeSource) -> Result<Vec<TelemetryRow>> {
+    checked(TelemetryReader::open(path)?, path, signal, &AreaKind::KINDS)
 }
 
 /// Every row of `rows` with its attitude from `signal`, refusing non-finite analysis columns,
@@ -26,6 +32,7 @@ fn checked<R: Read>(
     rows: TelemetryReader<R>,
     path: &Path,
     signal: AttitudeSource,
+    kinds: &[AreaKind],
 ) -> Result<Vec<TelemetryRow>> {
     let fields = match signal {
         AttitudeSource::Truth => ["sin_pitch", "theta_z"],
@@ -43,7 +50,7 @@ fn checked<R: Read>(
             }
             row = row.with_imu_attitude();
         }
-        if !AREAS.contains(&row.area) {
+        if !kinds.contains(&row.area) {
             return Err(EstimatorError::UnscoredKind {
                 path: path.to_path_buf(),
                 line,
@@ -83,6 +90,7 @@ mod tests {
             TelemetryReader::new(text.as_bytes(), path)?,
             path,
             AttitudeSource::Truth,
+            &AREAS,
         )
     }
 
@@ -94,7 +102,7 @@ mod tests {
         .expect_err("slope");
         assert_eq!(
             e.to_string(),
-            "t.csv: line 3 is on `slope` ground; the analysis scores SPEC S7's two kinds, flat and rough"
+            "t.csv: line 3 is on `slope` ground; the analysis scores SPEC S7's two kinds, flat and rough (`estimator-proc kinds` scores every kind)"
         );
     }
 
@@ -138,6 +146,7 @@ mod tests {
                 TelemetryReader::new(text.as_bytes(), path)?,
                 path,
                 AttitudeSource::Imu,
+                &AREAS,
             )
         };
         let row = "0,0,flat,0,0,0,0,0.1,0,0.2,0.0998,0,0,0,false,false,false,0,0";

@@ -1,5 +1,6 @@
-//! The `analyze` and `online` commands end to end on a synthetic recording: flat envs with
-//! small pitch noise, rough envs with larger, written as a real telemetry CSV.
+//! The `analyze`, `online` and `kinds` commands end to end on a synthetic recording: flat
+//! envs with small pitch noise, rough envs with larger, slope envs tilted, written as a real
+//! telemetry CSV.
 
 use common::{AreaKind, TelemetryRow};
 use std::path::{Path, PathBuf};
@@ -8,21 +9,24 @@ use std::process::Command;
 /// 3 flat and 3 rough envs, 500 ticks each, rows interleaved by tick as the sim writes them.
 /// Pitch is an AR(1) walk (correlated like a driving robot's) with area-dependent noise.
 fn write_traces(dir: &Path) -> PathBuf {
+    write_kinds(dir, &[AreaKind::Flat, AreaKind::Rough])
+}
+
+/// [`write_traces`] with 3 envs per kind of `kinds`; a slope's robots drive as on flat ground,
+/// rolled 0.2 rad.
+fn write_kinds(dir: &Path, kinds: &[AreaKind]) -> PathBuf {
     let path = dir.join("traces.csv");
     let mut w = csv::Writer::from_path(&path).expect("csv");
     let mut rng = common::Rng::new(42);
-    let mut pitch = [0.0f64; 6];
+    let mut pitch = vec![0.0f64; 3 * kinds.len()];
     for tick in 0..500u64 {
-        for env in 0..6u32 {
-            let area = if env < 3 {
-                AreaKind::Flat
-            } else {
-                AreaKind::Rough
-            };
-            let noise = if env < 3 { 0.012 } else { 0.05 };
+        for env in 0..pitch.len() as u32 {
+            let area = kinds[env as usize / 3];
+            let noise = if area == AreaKind::Rough { 0.05 } else { 0.012 };
             let p = &mut pitch[env as usize];
             *p = 0.6 * *p + noise * rng.normal();
-            let theta_z = 0.5 * *p + 0.01 * rng.normal();
+            let tilt = if area == AreaKind::Slope { 0.2 } else { 0.0 };
+            let theta_z = tilt + 0.5 * *p + 0.01 * rng.normal();
             w.serialize(TelemetryRow {
                 env,
                 tick,
@@ -59,13 +63,23 @@ fn write_traces(dir: &Path) -> PathBuf {
 
 /// `estimator-proc analyze TRACES --out OUT` with `args`, in process; its results.json.
 fn analyze(traces: &Path, out: &Path, args: &[&str]) -> serde_json::Value {
-    let argv = ["estimator-proc", "analyze", traces.to_str().expect("utf8")]
+    command("analyze", traces, out, args, "results.json")
+}
+
+/// `estimator-proc kinds TRACES --out OUT` with `args`, in process; its kinds.json.
+fn kinds(traces: &Path, out: &Path, args: &[&str]) -> serde_json::Value {
+    command("kinds", traces, out, args, "kinds.json")
+}
+
+/// `estimator-proc NAME TRACES ARGS --out OUT`, in process; the JSON file it wrote.
+fn command(name: &str, traces: &Path, out: &Path, args: &[&str], json: &str) -> serde_json::Value {
+    let argv = ["estimator-proc", name, traces.to_str().expect("utf8")]
         .into_iter()
         .chain(args.iter().copied())
         .chain(["--out", out.to_str().expect("utf8")]);
     let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
-    estimator_proc::run(cli).expect("analysis");
-    let text = std::fs::read_to_string(out.join("results.json")).expect("json");
+    estimator_proc::run(cli).expect(name);
+    let text = std::fs::read_to_string(out.join(json)).expect("json");
     serde_json::from_str(&text).expect("valid json")
 }
 
@@ -222,4 +236,56 @@ fn one_recording_is_scored_on_the_true_and_on_the_imu_pitch() {
     let (truth, imu) = (means("truth"), means("imu"));
     // The IMU's columns carry extra noise: every window's std, and so each mean, is larger.
     assert!(imu[0] > truth[0] && imu[1] > truth[1], "{truth:?} {imu:?}");
+}
+
+#[test]
+fn kinds_with_the_papers_one_feature_scores_as_analyze_does() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let traces = write_traces(tmp.path());
+    let paper = analyze(&traces, &tmp.path().join("a"), &["--windows", "10,70"]);
+    let ours = kinds(&traces, &tmp.path().join("k"), &["--windows", "10,70"]);
+    for (p, k) in paper["windows"]
+        .as_array()
+        .expect("windows")
+        .iter()
+        .zip(ours["windows"].as_array().expect("windows"))
+    {
+        assert_eq!(p["window"], k["window"]);
+        assert_eq!(p["accuracy"], k["accuracy"], "the same fit, the same score");
+        assert_eq!(k["component_kinds"], serde_json::json!(["flat", "rough"]));
+    }
+}
+
+#[test]
+fn kinds_tells_a_slope_by_its_tilt_where_the_papers_feature_cannot() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let traces = write_kinds(
+        tmp.path(),
+        &[AreaKind::Flat, AreaKind::Rough, AreaKind::Slope],
+    );
+    let config = tmp.path().join("c.toml");
+    std::fs::write(
+        &config,
+        "[estimator]\nfeatures = [\"pitch-std\", \"mean-tilt\"]\n",
+    )
+    .expect("config");
+    let c = config.to_str().expect("utf8");
+    let json = kinds(
+        &traces,
+        &tmp.path().join("k"),
+        &["--config", c, "--windows", "70"],
+    );
+    let w = &json["windows"][0];
+    assert_eq!(w["kinds"], serde_json::json!(["flat", "rough", "slope"]));
+    let macro_accuracy = w["macro_accuracy"].as_f64().expect("macro");
+    assert!(macro_accuracy > 0.95, "{macro_accuracy}");
+    // Without the tilt, slope and flat pitch alike: at most two of three kinds come out.
+    let ablation = json["ablation"].as_array().expect("ablation");
+    let without_tilt = ablation
+        .iter()
+        .find(|a| a["without"] == "mean-tilt")
+        .expect("tilt left out");
+    let blind = without_tilt["macro_accuracy"].as_f64().expect("macro");
+    assert!(blind < 0.8, "{blind}");
+    assert!(json["windows"][0]["model"]["several"]["means"].is_array());
 }

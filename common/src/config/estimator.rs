@@ -59,6 +59,59 @@ pub struct EstimatorConfig {
     /// pose (SPEC S7), or "imu", the orientation filter on the simulated IMU (needs
     /// `sim.observation = "imu"` or `sim.imu.simulate = true`). Default "truth".
     pub signal: AttitudeSource,
+    /// What describes a window for `estimator-proc kinds` (not in the paper): one or more of
+    /// "pitch-std" (SPEC S7's feature), "roll-std", "mean-tilt", "pitch-high-pass", "slip";
+    /// each documented on [`WindowFeature`]. Default ["pitch-std"].
+    pub features: Vec<WindowFeature>,
+    /// The several-feature mixture's covariances: "full" or "diagonal". Default "full".
+    pub covariance: Covariance,
+    /// A window farther than this many standard deviations (Mahalanobis) from every
+    /// component is "unknown" rather than any kind; 0 classifies every window. [0, 100].
+    /// Default 0.
+    pub unknown_beyond: f64,
+}
+
+/// A number that describes one window of one robot's ticks, and what it separates.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WindowFeature {
+    /// The std of sin θx (SPEC S7): bumps pitch the robot; high on rough ground, low on flat.
+    PitchStd,
+    /// The std of sin θz: bumps under one wheel roll the robot; rough against flat, as pitch,
+    /// and a slope crossed at an angle.
+    RollStd,
+    /// The mean tilt of the chassis from upright, `acos(cos θx cos θz)`, radians: a slope
+    /// tilts the robot whichever way it drives; bumps average out.
+    MeanTilt,
+    /// The RMS of sin θx's second difference per tick: what changes within a few ticks. Small
+    /// dense stones (gravel) raise it more than rough ground's wider bumps.
+    PitchHighPass,
+    /// `1 − path ÷ commanded path` (the wheels' mean command × wheel radius × time): wheels
+    /// that turn without moving the robot, on low-friction ground or a climb.
+    Slip,
+}
+
+impl WindowFeature {
+    pub fn name(self) -> &'static str {
+        match self {
+            WindowFeature::PitchStd => "pitch-std",
+            WindowFeature::RollStd => "roll-std",
+            WindowFeature::MeanTilt => "mean-tilt",
+            WindowFeature::PitchHighPass => "pitch-high-pass",
+            WindowFeature::Slip => "slip",
+        }
+    }
+}
+
+/// The covariance of each component of the several-feature mixture.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Covariance {
+    /// A full d × d matrix: features may correlate within a terrain.
+    #[default]
+    Full,
+    /// Variances only: d parameters per component, for few windows or many features.
+    Diagonal,
 }
 
 /// The value of a window the terrain mixture sees (SPEC S7: the window's std of sin θx).
@@ -114,6 +167,9 @@ impl Default for EstimatorConfig {
             model: None,
             feature: MixtureFeature::Std,
             signal: AttitudeSource::Truth,
+            features: vec![WindowFeature::PitchStd],
+            covariance: Covariance::Full,
+            unknown_beyond: 0.0,
         }
     }
 }
@@ -148,6 +204,26 @@ impl EstimatorConfig {
                 "must be in [0, 1)",
             ));
         }
+        if self.features.is_empty() || self.features.len() > 16 {
+            return Err(invalid(
+                "estimator.features",
+                &self.features,
+                "needs 1 to 16 features",
+            ));
+        }
+        if let Some(f) = self
+            .features
+            .iter()
+            .enumerate()
+            .find_map(|(i, f)| self.features[..i].contains(f).then_some(f))
+        {
+            return Err(invalid(
+                "estimator.features",
+                f.name(),
+                "names a feature twice",
+            ));
+        }
+        in_range("estimator.unknown-beyond", self.unknown_beyond, 0.0, 100.0)?;
         self.offline_mixture()?;
         Ok(())
     }

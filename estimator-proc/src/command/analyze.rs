@@ -34,6 +34,7 @@ pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
         est: cfg,
         seed,
         min_step_travel: gate,
+        ..
     } = args.input.resolve()?;
     let path = &args.input.traces;
     let rows = traces::read_telemetry(path, cfg.signal)?;

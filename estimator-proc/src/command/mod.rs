@@ -2,6 +2,7 @@
 //! parsers before any work starts; the config file is parsed and validated up front.
 
 pub mod analyze;
+pub mod kinds;
 pub mod online;
 pub mod serve;
 
@@ -22,6 +23,10 @@ pub enum Command {
     /// Reproduce the paper's terrain-identification analysis on recorded telemetry:
     /// results.json, results.md (Table 3) and the figures (Figs. 5–8).
     Analyze(analyze::AnalyzeArgs),
+    /// Tell several terrain kinds apart offline on recorded telemetry (beyond the paper's
+    /// two): a mixture over `estimator.features`, its components named after kinds by the
+    /// labels, its confusion and macro accuracy per window, and one ablation per feature.
+    Kinds(kinds::KindsArgs),
     /// Replay recorded telemetry through the online estimator: accuracy against window size
     /// and the delay to detect a terrain change.
     Online(online::OnlineArgs),
@@ -70,6 +75,10 @@ impl InputArgs {
             est,
             seed: self.seed.unwrap_or(cfg.run.seed),
             min_step_travel,
+            wheels: crate::features::Wheels {
+                radius: cfg.sim.robot.wheel_radius,
+                dt: cfg.sim.decision_dt(),
+            },
         })
     }
 }
@@ -79,6 +88,8 @@ pub struct Resolved {
     pub est: common::config::EstimatorConfig,
     pub seed: u64,
     pub min_step_travel: f64,
+    /// The robot's wheels, for the slip feature.
+    pub wheels: crate::features::Wheels,
 }
 
 fn load_config(path: Option<&Path>) -> anyhow::Result<common::Config> {
@@ -114,6 +125,7 @@ fn parse_window(s: &str) -> Result<usize, String> {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Analyze(args) => analyze::execute(&args),
+        Command::Kinds(args) => kinds::execute(&args),
         Command::Online(args) => online::execute(&args),
         Command::Serve(args) => serve::execute(&args),
     }

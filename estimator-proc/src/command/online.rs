@@ -28,6 +28,7 @@ pub fn execute(args: &OnlineArgs) -> anyhow::Result<()> {
         est: cfg,
         seed,
         min_step_travel,
+        ..
     } = args.input.resolve()?;
     let path = &args.input.traces;
     let rows = traces::read_telemetry(path, cfg.signal)?;

@@ -1,0 +1,165 @@
+//! `estimator-proc kinds TRACES.csv --out DIR [--config F] [--components K]`: several terrain
+//! kinds told apart offline, beyond SPEC S7's two (docs/EXPERIMENT.md E14).
+//!
+//! Per window size: the mixture over `estimator.features` fitted to every window (labels
+//! unused), each component named after the kind most of its windows have in a one-to-one
+//! assignment (Hungarian), and the confusion and macro accuracy this gives on the same
+//! windows. At `estimator.online-window` each feature is also left out once. `kinds.json`
+//! holds every model with its naming; `kinds.md` the tables.
+
+use super::{InputArgs, print_output};
+use crate::analysis;
+use crate::features::{self, FeatureWindows};
+use crate::kinds::{self, KindsResult};
+use crate::mixture::MixtureOptions;
+use crate::report::{create_dir, to_json, write_file};
+use crate::traces;
+use anyhow::Context as _;
+use common::AreaKind;
+use serde::Serialize;
+use std::path::PathBuf;
+
+#[derive(Debug, clap::Args)]
+pub struct KindsArgs {
+    #[command(flatten)]
+    pub input: InputArgs,
+    /// Mixture components, 1 ..= 16 [default: one per terrain kind in the recording].
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=16))]
+    pub components: Option<u64>,
+    /// Output directory for kinds.json and kinds.md (created if missing).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// What `kinds.json` holds.
+#[derive(Debug, Serialize)]
+struct KindsReport {
+    input: String,
+    seed: u64,
+    warmup_ticks: usize,
+    covariance: common::config::Covariance,
+    unknown_beyond: f64,
+    windows: Vec<KindsResult>,
+    /// At the online window, the macro accuracy without each feature in turn.
+    ablation: Vec<Ablation>,
+}
+
+#[derive(Debug, Serialize)]
+struct Ablation {
+    window: usize,
+    without: &'static str,
+    macro_accuracy: f64,
+}
+
+pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
+    let super::Resolved {
+        est: cfg,
+        seed,
+        min_step_travel: gate,
+        wheels,
+    } = args.input.resolve()?;
+    let path = &args.input.traces;
+    let rows = traces::read_any_kind(path, cfg.signal)?;
+    let series = analysis::split_series(&rows, cfg.warmup_ticks);
+    let kinds: Vec<AreaKind> = AreaKind::KINDS
+        .into_iter()
+        .filter(|k| series.iter().any(|s| s.area == *k))
+        .collect();
+    let components = args.components.map_or(kinds.len(), |k| k as usize);
+    let opts = MixtureOptions::from_config(&cfg, components, seed);
+    let names: Vec<&'static str> = cfg.features.iter().map(|f| f.name()).collect();
+    tracing::info!(rows = rows.len(), series = series.len(), kinds = kinds.len(), features = ?names, "telemetry read");
+    let fit = |windows: &FeatureWindows, w: usize, names: &[&'static str]| {
+        kinds::fit_and_name(windows, w, names, &kinds, &opts, cfg.unknown_beyond)
+            .with_context(|| format!("window {w}"))
+    };
+    let mut results = Vec::new();
+    let mut ablation = Vec::new();
+    for &w in &cfg.windows {
+        let windows = features::window_features(&series, w, &cfg.features, gate, wheels)
+            .with_context(|| format!("window {w}"))?;
+        results.push(fit(&windows, w, &names)?);
+        if w == cfg.online_window && names.len() > 1 {
+            for (i, &without) in names.iter().enumerate() {
+                let keep: Vec<usize> = (0..names.len()).filter(|&j| j != i).collect();
+                let kept: Vec<&'static str> = keep.iter().map(|&j| names[j]).collect();
+                let r = fit(&windows.select(&keep), w, &kept)?;
+                ablation.push(Ablation {
+                    window: w,
+                    without,
+                    macro_accuracy: r.macro_accuracy,
+                });
+            }
+        }
+    }
+    let report = KindsReport {
+        input: path.display().to_string(),
+        seed,
+        warmup_ticks: cfg.warmup_ticks,
+        covariance: cfg.covariance,
+        unknown_beyond: cfg.unknown_beyond,
+        windows: results,
+        ablation,
+    };
+    create_dir(&args.out)?;
+    let markdown = to_markdown(&report);
+    write_file(&args.out.join("kinds.json"), &to_json(&report))?;
+    write_file(&args.out.join("kinds.md"), &markdown)?;
+    print_output(&markdown);
+    Ok(())
+}
+
+fn pct(x: f64) -> String {
+    format!("{:.2}", 100.0 * x)
+}
+
+fn to_markdown(r: &KindsReport) -> String {
+    let Some(first) = r.windows.first() else {
+        return String::new();
+    };
+    let mut md = format!(
+        "# Terrain kinds on `{}`\n\nFeatures: {}. Kinds: {}. Components named by the labels (Hungarian).\n\n| window | windows | macro accuracy % | accuracy % | unknown | components → kinds |\n|---:|---:|---:|---:|---:|---|\n",
+        r.input,
+        first.features.join(", "),
+        first.kinds.join(", ")
+    );
+    for w in &r.windows {
+        md += &format!(
+            "| {} | {} | {} | {} | {} | {} |\n",
+            w.window,
+            w.n,
+            pct(w.macro_accuracy),
+            pct(w.accuracy),
+            w.unknown,
+            w.component_kinds.join(", ")
+        );
+    }
+    for w in &r.windows {
+        md += &format!(
+            "\n## Window {}: windows of each true kind (rows) by the kind given (columns)\n\n| true \\ given | {} | unknown |\n|---|{}---:|\n",
+            w.window,
+            w.kinds.join(" | "),
+            "---:|".repeat(w.kinds.len())
+        );
+        for (kind, row) in w.kinds.iter().zip(&w.confusion) {
+            let total: u64 = row.iter().sum::<u64>().max(1);
+            let cells: Vec<String> = row
+                .iter()
+                .map(|&c| format!("{c} ({:.1} %)", 100.0 * c as f64 / total as f64))
+                .collect();
+            md += &format!("| {kind} | {} |\n", cells.join(" | "));
+        }
+    }
+    if !r.ablation.is_empty() {
+        md += "\n## Each feature left out once\n\n| window | without | macro accuracy % |\n|---:|---|---:|\n";
+        for a in &r.ablation {
+            md += &format!(
+                "| {} | {} | {} |\n",
+                a.window,
+                a.without,
+                pct(a.macro_accuracy)
+            );
+        }
+    }
+    md
+}

@@ -1,0 +1,380 @@
+//! Naming a mixture's components after terrain kinds, and scoring a K-kind classifier on a
+//! labelled recording (`estimator-proc kinds`).
+//!
+//! With one feature SPEC S7 calls the lowest-mean component "flat"; with several features and
+//! kinds no order names them. A labelled collection does: its confusion matrix (true kind ×
+//! component) gives, for every one-to-one assignment of components to kinds, how many windows
+//! it would classify right, and the Hungarian method finds the best in O(K³). Components
+//! beyond the number of kinds (a kind split in two) go to the kind most of their windows
+//! have.
+
+use crate::Result;
+use crate::features::FeatureWindows;
+use crate::gmm::{self, Gmm};
+use crate::mixture::{self, Mixture, MixtureOptions};
+use common::AreaKind;
+use serde::Serialize;
+
+/// A fitted classifier of windows: with one feature SPEC S7's 1-D mixture ([`crate::gmm`],
+/// so one feature reproduces the paper's analysis exactly), with several the d-dimensional
+/// one ([`crate::mixture`]).
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Classifier {
+    OneFeature(Gmm),
+    Several(Mixture),
+}
+
+impl Classifier {
+    /// Fits `windows` (labels unused) with `opts`' components and EM settings.
+    pub fn fit(
+        windows: &FeatureWindows,
+        opts: &MixtureOptions,
+    ) -> Result<(Self, f64, usize, bool)> {
+        if windows.dim == 1 {
+            let f = gmm::fit(&windows.values, &opts.em)?;
+            Ok((
+                Self::OneFeature(f.model),
+                f.log_likelihood,
+                f.iterations,
+                f.converged,
+            ))
+        } else {
+            let f = mixture::fit(&windows.values, windows.dim, opts)?;
+            Ok((
+                Self::Several(f.model),
+                f.log_likelihood,
+                f.iterations,
+                f.converged,
+            ))
+        }
+    }
+
+    pub fn components(&self) -> usize {
+        match self {
+            Self::OneFeature(g) => g.components(),
+            Self::Several(m) => m.components(),
+        }
+    }
+
+    /// The most probable component of a window's features `x`.
+    pub fn classify(&self, x: &[f64]) -> usize {
+        match self {
+            Self::OneFeature(g) => g.classify(x[0]),
+            Self::Several(m) => m.classify(x),
+        }
+    }
+
+    /// Whether some component explains `x`: within `beyond` standard deviations
+    /// (Mahalanobis) of its mean; 0 accepts every window.
+    pub fn explains(&self, x: &[f64], beyond: f64) -> bool {
+        if beyond <= 0.0 {
+            return true;
+        }
+        match self {
+            Self::OneFeature(g) => g
+                .means()
+                .iter()
+                .zip(g.stds())
+                .any(|(m, s)| (x[0] - m).abs() <= beyond * s),
+            Self::Several(m) => m.classify_or_unknown(x, beyond).is_some(),
+        }
+    }
+}
+
+/// A K-kind classifier fitted to a labelled recording's windows, its components named after
+/// kinds, and its score there.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KindsResult {
+    pub window: usize,
+    pub features: Vec<&'static str>,
+    /// The recording's kinds: the rows of `confusion`, the columns before "unknown".
+    pub kinds: Vec<&'static str>,
+    pub n: usize,
+    pub stationary: usize,
+    pub log_likelihood: f64,
+    pub iterations: usize,
+    pub converged: bool,
+    /// The kind each component stands for ([`assign`]).
+    pub component_kinds: Vec<&'static str>,
+    /// `confusion[true][predicted]` over `kinds`, then a last column of unknown windows.
+    pub confusion: Vec<Vec<u64>>,
+    /// Windows classified right over all windows.
+    pub accuracy: f64,
+    /// The mean over kinds of each one's share classified right ([`macro_accuracy`]).
+    pub macro_accuracy: f64,
+    pub unknown: u64,
+    pub model: Classifier,
+}
+
+/// Fits `windows`, names the components after the recording's `kinds` by the labels, and
+/// scores every window; those farther than `beyond` σ from every component are unknown.
+pub fn fit_and_name(
+    windows: &FeatureWindows,
+    window: usize,
+    features: &[&'static str],
+    kinds: &[AreaKind],
+    opts: &MixtureOptions,
+    beyond: f64,
+) -> Result<KindsResult> {
+    let (model, log_likelihood, iterations, converged) = Classifier::fit(windows, opts)?;
+    let row = |k: &AreaKind| kinds.iter().position(|x| x == k);
+    let classes: Vec<Option<usize>> = windows
+        .values
+        .chunks_exact(windows.dim)
+        .map(|x| model.explains(x, beyond).then(|| model.classify(x)))
+        .collect();
+    let mut by_component = vec![vec![0u64; model.components()]; kinds.len()];
+    for (class, kind) in classes.iter().zip(&windows.kinds) {
+        if let (Some(c), Some(k)) = (class, row(kind)) {
+            by_component[k][*c] += 1;
+        }
+    }
+    let kind_of = assign(&by_component);
+    let mut confusion = vec![vec![0u64; kinds.len() + 1]; kinds.len()];
+    for (class, kind) in classes.iter().zip(&windows.kinds) {
+        if let Some(k) = row(kind) {
+            confusion[k][class.map_or(kinds.len(), |c| kind_of[c])] += 1;
+        }
+    }
+    let right: u64 = (0..kinds.len()).map(|k| confusion[k][k]).sum();
+    Ok(KindsResult {
+        window,
+        features: features.to_vec(),
+        kinds: kinds.iter().map(|k| k.name()).collect(),
+        n: windows.len(),
+        stationary: windows.stationary,
+        log_likelihood,
+        iterations,
+        converged,
+        component_kinds: kind_of.iter().map(|&k| kinds[k].name()).collect(),
+        accuracy: right as f64 / windows.len().max(1) as f64,
+        macro_accuracy: macro_accuracy(&confusion),
+        unknown: classes.iter().filter(|c| c.is_none()).count() as u64,
+        confusion,
+        model,
+    })
+}
+
+/// `kind_of[c]`: the kind (row of `confusion`) component `c` (column) stands for, chosen to
+/// maximise the windows classified right. `confusion[kind][component]` counts windows.
+pub fn assign(confusion: &[Vec<u64>]) -> Vec<usize> {
+    let kinds = confusion.len();
+    let components = confusion.first().map_or(0, Vec::len);
+    let n = kinds.max(components);
+    // Cost of giving component j kind i: minus the windows that would be right (padded 0).
+    let cost = |i: usize, j: usize| -> i64 {
+        if i < kinds && j < components {
+            -(confusion[i][j] as i64)
+        } else {
+            0
+        }
+    };
+    let row_of = hungarian(n, cost);
+    (0..components)
+        .map(|j| {
+            let i = row_of[j];
+            if i < kinds {
+                i
+            } else {
+                (0..kinds).max_by_key(|&k| confusion[k][j]).unwrap_or(0)
+            }
+        })
+        .collect()
+}
+
+/// The minimum-cost perfect matching of an `n × n` cost matrix (rows to columns), by the
+/// Hungarian method with potentials: returns the row matched to each column.
+fn hungarian(n: usize, cost: impl Fn(usize, usize) -> i64) -> Vec<usize> {
+    // 1-based arrays; `matched[j]` is the row (1..=n) of column j, 0 for none.
+    let (mut u, mut v) = (vec![0i64; n + 1], vec![0i64; n + 1]);
+    let (mut matched, mut way) = (vec![0usize; n + 1], vec![0usize; n + 1]);
+    for row in 1..=n {
+        matched[0] = row;
+        let mut col = 0;
+        let mut min = vec![i64::MAX; n + 1];
+        let mut used = vec![false; n + 1];
+        loop {
+            used[col] = true;
+            let i = matched[col];
+            let (mut delta, mut next) = (i64::MAX, 0);
+            for j in 1..=n {
+                if !used[j] {
+                    let reduced = cost(i - 1, j - 1) - u[i] - v[j];
+                    if reduced < min[j] {
+                        min[j] = reduced;
+                        way[j] = col;
+                    }
+                    if min[j] < delta {
+                        delta = min[j];
+                        next = j;
+                    }
+                }
+            }
+            for j in 0..=n {
+                if used[j] {
+                    u[matched[j]] += delta;
+                    v[j] -= delta;
+                } else {
+                    min[j] -= delta;
+                }
+            }
+            col = next;
+            if matched[col] == 0 {
+                break;
+            }
+        }
+        while col != 0 {
+            let prev = way[col];
+            matched[col] = matched[prev];
+            col = prev;
+        }
+    }
+    (1..=n).map(|j| matched[j] - 1).collect()
+}
+
+/// The confusion of predicted kinds: `by_kind[true][predicted]`, from the component confusion
+/// and the assignment.
+#[cfg(test)]
+pub fn kind_confusion(confusion: &[Vec<u64>], kind_of: &[usize]) -> Vec<Vec<u64>> {
+    let kinds = confusion.len();
+    confusion
+        .iter()
+        .map(|row| {
+            let mut out = vec![0u64; kinds];
+            for (c, &count) in row.iter().enumerate() {
+                out[kind_of[c]] += count;
+            }
+            out
+        })
+        .collect()
+}
+
+/// The mean over kinds (rows) of each kind's share of windows classified right (kinds with no
+/// windows left out): every kind counts alike however many windows it has. A row may have
+/// more columns than kinds (e.g. unknown windows): they count as wrong.
+pub fn macro_accuracy(by_kind: &[Vec<u64>]) -> f64 {
+    let recalls: Vec<f64> = by_kind
+        .iter()
+        .enumerate()
+        .filter_map(|(k, row)| {
+            let total: u64 = row.iter().sum();
+            (total > 0).then(|| row[k] as f64 / total as f64)
+        })
+        .collect();
+    recalls.iter().sum::<f64>() / recalls.len().max(1) as f64
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::analysis::{analyze_window, split_series};
+    use crate::features::{Wheels, window_features};
+    use common::TelemetryRow;
+    use common::config::{EstimatorConfig, MixtureFeature, WindowFeature};
+
+    #[test]
+    fn one_feature_and_two_kinds_give_the_papers_analysis_exactly() {
+        // Flat and rough robots whose sin θx wanders with the ground's std, 1 cm per tick.
+        let mut rng = common::Rng::new(5);
+        let mut rows = Vec::new();
+        for env in 0..6u32 {
+            let (area, sd) = if env < 3 {
+                (AreaKind::Flat, 0.02)
+            } else {
+                (AreaKind::Rough, 0.07)
+            };
+            for tick in 0..400u64 {
+                rows.push(TelemetryRow {
+                    env,
+                    tick,
+                    area,
+                    x: 0.01 * tick as f64,
+                    sin_pitch: sd * rng.normal(),
+                    ..TelemetryRow::default()
+                });
+            }
+        }
+        let series = split_series(&rows, 100);
+        let cfg = EstimatorConfig::default();
+        let paper_opts = crate::gmm::FitOptions::from_config(&cfg, 3);
+        let opts = MixtureOptions::from_config(&cfg, 2, 3);
+        let wheels = Wheels {
+            radius: 0.035,
+            dt: 0.1,
+        };
+        for window in [10, 20, 40, 70] {
+            let paper = analyze_window(&series, window, &paper_opts, 0.002, MixtureFeature::Std)
+                .expect("paper");
+            let windows =
+                window_features(&series, window, &[WindowFeature::PitchStd], 0.002, wheels)
+                    .expect("features");
+            let kinds = [AreaKind::Flat, AreaKind::Rough];
+            let ours =
+                fit_and_name(&windows, window, &["pitch-std"], &kinds, &opts, 0.0).expect("kinds");
+            assert_eq!(
+                ours.accuracy.to_bits(),
+                paper.accuracy.to_bits(),
+                "w{window}"
+            );
+            assert_eq!(ours.component_kinds, vec!["flat", "rough"]);
+            let without_unknown: Vec<Vec<u64>> =
+                ours.confusion.iter().map(|r| r[..2].to_vec()).collect();
+            assert_eq!(without_unknown, paper.confusion, "w{window}");
+            let Classifier::OneFeature(g) = &ours.model else {
+                panic!("one feature fits the paper's mixture");
+            };
+            assert_eq!(g.means(), &paper.means[..]);
+        }
+    }
+
+    #[test]
+    fn the_assignment_is_the_best_one_to_one_not_the_greedy_one() {
+        // Greedy would give component 0 kind 0 (9 windows), then component 1 kind 1 (1): 10
+        // right. Swapping gives 8 + 8 = 16.
+        let confusion = vec![vec![9, 8], vec![8, 1]];
+        assert_eq!(assign(&confusion), vec![1, 0]);
+        let by_kind = kind_confusion(&confusion, &[1, 0]);
+        assert_eq!(by_kind, vec![vec![8, 9], vec![1, 8]]);
+    }
+
+    #[test]
+    fn the_assignment_follows_any_permutation_of_the_components() {
+        // Kind k's windows mostly in component perm[k].
+        let base = [
+            [90u64, 5, 3, 2],
+            [4, 80, 10, 6],
+            [1, 2, 95, 2],
+            [3, 7, 5, 85],
+        ];
+        for perm in [[0, 1, 2, 3], [3, 2, 1, 0], [1, 3, 0, 2], [2, 0, 3, 1]] {
+            let confusion: Vec<Vec<u64>> = base
+                .iter()
+                .map(|row| {
+                    let mut out = vec![0; 4];
+                    for (k, &count) in row.iter().enumerate() {
+                        out[perm[k]] = count;
+                    }
+                    out
+                })
+                .collect();
+            let kind_of = assign(&confusion);
+            for (k, &c) in perm.iter().enumerate() {
+                assert_eq!(kind_of[c], k, "perm {perm:?}: {kind_of:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn extra_components_join_their_majority_kind_and_macro_accuracy_weighs_kinds_alike() {
+        // Three components for two kinds: component 2 is a second rough cluster.
+        let confusion = vec![vec![100, 0, 10], vec![0, 50, 40]];
+        let kind_of = assign(&confusion);
+        assert_eq!(kind_of, vec![0, 1, 1]);
+        let by_kind = kind_confusion(&confusion, &kind_of);
+        assert_eq!(by_kind, vec![vec![100, 10], vec![0, 90]]);
+        // Recalls 100/110 and 90/90: the mean, not the pooled 190/200.
+        let m = macro_accuracy(&by_kind);
+        assert!((m - 0.5 * (100.0 / 110.0 + 1.0)).abs() < 1e-12, "{m}");
+    }
+}
