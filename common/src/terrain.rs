@@ -569,7 +569,7 @@ mod tests {
         assert_eq!(cfg.mixed_kind_at(1.0, 3.5), AreaKind::Flat);
         assert_eq!(cfg.mixed_kind_at(3.0, 3.5), AreaKind::Slope);
         assert_eq!(cfg.mixed_kind_at(5.0, 3.5), AreaKind::Gravel);
-        assert_eq!(cfg.friction_of(AreaKind::Slope), Some(0.3));
+        assert_eq!(cfg.friction_of(AreaKind::Slope), Some(0.5));
         assert_eq!(cfg.friction_of(AreaKind::Rough), None);
         let default = TerrainConfig::default();
         assert_eq!(default.mixed_kind_at(-5.0, 2.75), AreaKind::Rough);

@@ -12,6 +12,8 @@ use plotters::prelude::*;
 use plotters::style::text_anchor::{HPos, Pos, VPos};
 use std::path::Path;
 
+pub mod kinds;
+
 const FLAT: RGBColor = RGBColor(31, 119, 180);
 const ROUGH: RGBColor = RGBColor(214, 39, 40);
 const MIXED: RGBColor = RGBColor(148, 103, 189);
@@ -230,62 +232,84 @@ pub fn draw_confusions(path: &Path, results: &[&WindowResult]) -> Result<()> {
             (FONT, 24).into_font().style(FontStyle::Bold),
         )?;
         for (area, r) in root.split_evenly((1, panels)).iter().zip(results) {
-            draw_heatmap(area, r)?;
+            draw_heatmap(area, &paper_heatmap(r))?;
         }
         Ok(())
     })
 }
 
-fn draw_heatmap(
-    area: &DrawingArea<BitMapBackend<'_>, Shift>,
-    r: &WindowResult,
-) -> std::result::Result<(), Box<dyn std::error::Error>> {
+/// One confusion matrix to draw: counts by true row and given column, rows listed top to
+/// bottom, each cell shaded by its share of the row.
+pub struct Heatmap<'a> {
+    pub caption: String,
+    pub rows: Vec<String>,
+    pub columns: Vec<String>,
+    pub counts: &'a [Vec<u64>],
+    pub x_desc: &'static str,
+    pub y_desc: &'static str,
+}
+
+/// SPEC S7's heatmap of one window: true area (flat on top) × mixture class.
+fn paper_heatmap(r: &WindowResult) -> Heatmap<'_> {
     let classes = r.means.len();
+    Heatmap {
+        caption: format!(
+            "window = {} (accuracy {:.2} %)",
+            r.window,
+            100.0 * r.accuracy
+        ),
+        rows: vec!["flat".into(), "rough".into()],
+        columns: (0..classes)
+            .map(|k| match (k, classes) {
+                (0, _) => "flat (0)".to_string(),
+                (1, 2) => "rough (1)".to_string(),
+                (k, _) => format!("class {k}"),
+            })
+            .collect(),
+        counts: &r.confusion,
+        x_desc: "predicted class",
+        y_desc: "true area",
+    }
+}
+
+pub fn draw_heatmap(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    h: &Heatmap<'_>,
+) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    let (columns, rows) = (h.columns.len(), h.rows.len());
     let mut chart = ChartBuilder::on(area)
-        .caption(
-            format!(
-                "window = {} (accuracy {:.2} %)",
-                r.window,
-                100.0 * r.accuracy
-            ),
-            (FONT, 20),
-        )
+        .caption(&h.caption, (FONT, 20))
         .margin(18)
         .x_label_area_size(60)
         .y_label_area_size(80)
         // plotters' integer ranges include their end: 0..n-1 gives n cells.
         .build_cartesian_2d(
-            (0..classes - 1).into_segmented(),
-            (0..1usize).into_segmented(),
+            (0..columns - 1).into_segmented(),
+            (0..rows - 1).into_segmented(),
         )?;
-    let class_name = |v: &SegmentValue<usize>| match v {
-        SegmentValue::CenterOf(k) if *k < classes => match (*k, classes) {
-            (0, _) => "flat (0)".to_string(),
-            (1, 2) => "rough (1)".to_string(),
-            (k, _) => format!("class {k}"),
-        },
+    let column_name = |v: &SegmentValue<usize>| match v {
+        SegmentValue::CenterOf(k) if *k < columns => h.columns[*k].clone(),
         _ => String::new(),
     };
-    // Row 1 (top) is flat, row 0 rough, so the matrix reads like the paper's.
-    let area_name = |v: &SegmentValue<usize>| match v {
-        SegmentValue::CenterOf(1) => "flat".to_string(),
-        SegmentValue::CenterOf(0) => "rough".to_string(),
+    // The first row is drawn on top, so the matrix reads as it is listed.
+    let row_name = |v: &SegmentValue<usize>| match v {
+        SegmentValue::CenterOf(y) if *y < rows => h.rows[rows - 1 - *y].clone(),
         _ => String::new(),
     };
     chart
         .configure_mesh()
         .disable_mesh()
-        .x_desc("predicted class")
-        .y_desc("true area")
-        .x_label_formatter(&class_name)
-        .y_label_formatter(&area_name)
+        .x_desc(h.x_desc)
+        .y_desc(h.y_desc)
+        .x_label_formatter(&column_name)
+        .y_label_formatter(&row_name)
         .label_style((FONT, 17))
         .axis_desc_style((FONT, 18))
         .draw()?;
     let mut cells = Vec::new();
-    for (row, counts) in r.confusion.iter().enumerate() {
+    for (row, counts) in h.counts.iter().enumerate() {
         let total = counts.iter().sum::<u64>().max(1) as f64;
-        let y = 1 - row;
+        let y = rows - 1 - row;
         for (k, &count) in counts.iter().enumerate() {
             cells.push((k, y, count, count as f64 / total));
         }
@@ -300,6 +324,7 @@ fn draw_heatmap(
             RGBColor(shade(8), shade(48), shade(107)).filled(),
         )
     }))?;
+    let big = if rows > 3 { 20 } else { 28 };
     chart.draw_series(cells.iter().map(|&(k, y, count, frac)| {
         let color: &'static RGBColor = if frac > 0.5 { &WHITE } else { &BLACK };
         let style = |size: u32| {
@@ -309,7 +334,7 @@ fn draw_heatmap(
                 .pos(Pos::new(HPos::Center, VPos::Center))
         };
         EmptyElement::at((SegmentValue::CenterOf(k), SegmentValue::CenterOf(y)))
-            + Text::new(count.to_string(), (0, -14), style(28))
+            + Text::new(count.to_string(), (0, -14), style(big))
             + Text::new(format!("{:.1} %", 100.0 * frac), (0, 18), style(18))
     }))?;
     Ok(())

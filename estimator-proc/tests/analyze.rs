@@ -288,4 +288,12 @@ fn kinds_tells_a_slope_by_its_tilt_where_the_papers_feature_cannot() {
     let blind = without_tilt["macro_accuracy"].as_f64().expect("macro");
     assert!(blind < 0.8, "{blind}");
     assert!(json["windows"][0]["model"]["several"]["means"].is_array());
+    for fig in ["fig_kinds_confusion.png", "fig_kinds_scatter_w70.png"] {
+        let bytes =
+            std::fs::read(tmp.path().join("k").join(fig)).unwrap_or_else(|e| panic!("{fig}: {e}"));
+        assert!(
+            bytes.starts_with(b"\x89PNG") && bytes.len() > 10_000,
+            "{fig}"
+        );
+    }
 }

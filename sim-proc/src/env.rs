@@ -745,7 +745,7 @@ mod tests {
                 .map(|(_, c)| (c.friction(), c.friction_combine_rule()))
                 .expect("a floor");
             let want = match env.ground() {
-                AreaKind::Slope => (0.3, CoefficientCombineRule::Min),
+                AreaKind::Slope => (0.5, CoefficientCombineRule::Min),
                 _ => (1.0, CoefficientCombineRule::Average),
             };
             assert_eq!(floor, want, "env {id} on {:?}", env.ground());

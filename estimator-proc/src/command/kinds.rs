@@ -5,7 +5,9 @@
 //! unused), each component named after the kind most of its windows have in a one-to-one
 //! assignment (Hungarian), and the confusion and macro accuracy this gives on the same
 //! windows. At `estimator.online-window` each feature is also left out once. `kinds.json`
-//! holds every model with its naming; `kinds.md` the tables.
+//! holds every model with its naming, `kinds.md` the tables; `fig_kinds_confusion.png` the
+//! confusion matrices and, with two features or more, `fig_kinds_scatter_w<W>.png` the first
+//! two features' windows at the online window with the mixture's 2σ ellipses.
 
 use super::{InputArgs, print_output};
 use crate::analysis;
@@ -13,7 +15,7 @@ use crate::features::{self, FeatureWindows};
 use crate::kinds::{self, KindsResult};
 use crate::mixture::MixtureOptions;
 use crate::report::{create_dir, to_json, write_file};
-use crate::traces;
+use crate::{figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
 use serde::Serialize;
@@ -42,7 +44,12 @@ struct KindsReport {
     windows: Vec<KindsResult>,
     /// At the online window, the macro accuracy without each feature in turn.
     ablation: Vec<Ablation>,
+    /// The PNGs written beside this file.
+    figures: Vec<String>,
 }
+
+/// Every window size's K-kind confusion matrix.
+pub const FIG_CONFUSION: &str = "fig_kinds_confusion.png";
 
 #[derive(Debug, Serialize)]
 struct Ablation {
@@ -75,6 +82,7 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     };
     let mut results = Vec::new();
     let mut ablation = Vec::new();
+    let mut scatter = None;
     for &w in &cfg.windows {
         let windows = features::window_features(&series, w, &cfg.features, gate, wheels)
             .with_context(|| format!("window {w}"))?;
@@ -90,7 +98,19 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
                     macro_accuracy: r.macro_accuracy,
                 });
             }
+            scatter = Some((windows, results.len() - 1));
         }
+    }
+    create_dir(&args.out)?;
+    let mut figures = vec![FIG_CONFUSION.to_string()];
+    figures::kinds::draw_kinds_confusions(
+        &args.out.join(FIG_CONFUSION),
+        &results.iter().collect::<Vec<_>>(),
+    )?;
+    if let Some((windows, i)) = &scatter {
+        let name = format!("fig_kinds_scatter_w{}.png", results[*i].window);
+        figures::kinds::draw_feature_scatter(&args.out.join(&name), windows, &results[*i])?;
+        figures.push(name);
     }
     let report = KindsReport {
         input: path.display().to_string(),
@@ -100,8 +120,8 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
         unknown_beyond: cfg.unknown_beyond,
         windows: results,
         ablation,
+        figures,
     };
-    create_dir(&args.out)?;
     let markdown = to_markdown(&report);
     write_file(&args.out.join("kinds.json"), &to_json(&report))?;
     write_file(&args.out.join("kinds.md"), &markdown)?;
