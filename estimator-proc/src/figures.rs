@@ -225,14 +225,22 @@ pub fn draw_distribution(path: &Path, window: usize, flat: &[f64], rough: &[f64]
 /// mixture class (0 = flat). Cells are shaded by the fraction of their row and show the count
 /// and that fraction.
 pub fn draw_confusions(path: &Path, results: &[&WindowResult]) -> Result<()> {
-    let panels = results.len().max(1);
-    with_canvas(path, (560 * panels as u32, 560), |root| {
-        let root = root.titled(
-            "Confusion matrices (true area × GMM class)",
-            (FONT, 24).into_font().style(FontStyle::Bold),
-        )?;
-        for (area, r) in root.split_evenly((1, panels)).iter().zip(results) {
-            draw_heatmap(area, &paper_heatmap(r))?;
+    let maps: Vec<Heatmap<'_>> = results.iter().map(|r| paper_heatmap(r)).collect();
+    draw_heatmaps(
+        path,
+        "Confusion matrices (true area × GMM class)",
+        560,
+        &maps,
+    )
+}
+
+/// `maps` side by side under `title`, each panel `side` pixels square.
+pub fn draw_heatmaps(path: &Path, title: &str, side: u32, maps: &[Heatmap<'_>]) -> Result<()> {
+    let panels = maps.len().max(1);
+    with_canvas(path, (side * panels as u32, side), |root| {
+        let root = root.titled(title, (FONT, 24).into_font().style(FontStyle::Bold))?;
+        for (area, h) in root.split_evenly((1, panels)).iter().zip(maps) {
+            draw_heatmap(area, h)?;
         }
         Ok(())
     })
@@ -272,7 +280,7 @@ fn paper_heatmap(r: &WindowResult) -> Heatmap<'_> {
     }
 }
 
-pub fn draw_heatmap(
+fn draw_heatmap(
     area: &DrawingArea<BitMapBackend<'_>, Shift>,
     h: &Heatmap<'_>,
 ) -> std::result::Result<(), Box<dyn std::error::Error>> {

@@ -2,7 +2,7 @@
 //! windows coloured by true kind with the mixture's ellipses.
 
 use super::{
-    FONT, GRID, Heatmap, area_color, axis_number, draw_heatmap, padded_range, with_canvas,
+    FONT, GRID, Heatmap, area_color, axis_number, draw_heatmaps, padded_range, with_canvas,
 };
 use crate::Result;
 use crate::features::FeatureWindows;
@@ -14,42 +14,44 @@ use std::path::Path;
 /// One K-kind confusion matrix per result, side by side: true kind × kind given, with an
 /// "unknown" column when some window was unknown.
 pub fn draw_kinds_confusions(path: &Path, results: &[&KindsResult]) -> Result<()> {
-    let panels = results.len().max(1);
-    with_canvas(path, (620 * panels as u32, 620), |root| {
-        let root = root.titled(
-            "Confusion matrices (true kind × kind given)",
-            (FONT, 24).into_font().style(FontStyle::Bold),
-        )?;
-        for (area, r) in root.split_evenly((1, panels)).iter().zip(results) {
-            let k = r.kinds.len();
-            let unknown = r.unknown > 0;
-            let counts: Vec<Vec<u64>> = r
-                .confusion
+    let counts: Vec<Vec<Vec<u64>>> = results
+        .iter()
+        .map(|r| {
+            let shown = r.kinds.len() + usize::from(r.unknown > 0);
+            r.confusion
                 .iter()
-                .map(|row| row[..k + usize::from(unknown)].to_vec())
-                .collect();
+                .map(|row| row[..shown].to_vec())
+                .collect()
+        })
+        .collect();
+    let maps: Vec<Heatmap<'_>> = results
+        .iter()
+        .zip(&counts)
+        .map(|(r, counts)| {
             let mut columns: Vec<String> = r.kinds.iter().map(ToString::to_string).collect();
-            if unknown {
+            if r.unknown > 0 {
                 columns.push("unknown".into());
             }
-            draw_heatmap(
-                area,
-                &Heatmap {
-                    caption: format!(
-                        "window = {} (macro accuracy {:.2} %)",
-                        r.window,
-                        100.0 * r.macro_accuracy
-                    ),
-                    rows: r.kinds.iter().map(ToString::to_string).collect(),
-                    columns,
-                    counts: &counts,
-                    x_desc: "kind given",
-                    y_desc: "true kind",
-                },
-            )?;
-        }
-        Ok(())
-    })
+            Heatmap {
+                caption: format!(
+                    "window = {} (macro accuracy {:.2} %)",
+                    r.window,
+                    100.0 * r.macro_accuracy
+                ),
+                rows: r.kinds.iter().map(ToString::to_string).collect(),
+                columns,
+                counts,
+                x_desc: "kind given",
+                y_desc: "true kind",
+            }
+        })
+        .collect();
+    draw_heatmaps(
+        path,
+        "Confusion matrices (true kind × kind given)",
+        620,
+        &maps,
+    )
 }
 
 /// The most windows drawn per kind (every n-th one, so each kind's spread stays visible).
