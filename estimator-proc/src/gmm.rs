@@ -17,7 +17,7 @@
 
 use crate::{EstimatorError, Result};
 use common::config::EstimatorConfig;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 const LN_2PI: f64 = 1.837_877_066_409_345_5;
 
@@ -54,8 +54,10 @@ impl FitOptions {
     }
 }
 
-/// Mixture parameters, components sorted by ascending mean.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+/// Mixture parameters, components sorted by ascending mean. Read back (`Deserialize`) through
+/// [`Gmm::new`], so a stored model is validated and its caches rebuilt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "GmmParams")]
 pub struct Gmm {
     weights: Vec<f64>,
     means: Vec<f64>,
@@ -69,6 +71,22 @@ pub struct Gmm {
     /// `1 / (2 σ_k²)`, cached for the per-tick path.
     #[serde(skip)]
     half_precision: Vec<f64>,
+}
+
+/// A stored [`Gmm`]'s parameters.
+#[derive(Deserialize)]
+struct GmmParams {
+    weights: Vec<f64>,
+    means: Vec<f64>,
+    variances: Vec<f64>,
+}
+
+impl TryFrom<GmmParams> for Gmm {
+    type Error = EstimatorError;
+
+    fn try_from(p: GmmParams) -> Result<Self> {
+        Self::new(p.weights, p.means, p.variances)
+    }
 }
 
 /// The result of one E-step: the log-likelihood of the data under the current parameters and

@@ -13,12 +13,13 @@ use crate::features::FeatureWindows;
 use crate::gmm::{self, Gmm};
 use crate::mixture::{self, Mixture, MixtureOptions};
 use common::AreaKind;
-use serde::Serialize;
+use common::config::WindowFeature;
+use serde::{Deserialize, Serialize};
 
 /// A fitted classifier of windows: with one feature SPEC S7's 1-D mixture ([`crate::gmm`],
 /// so one feature reproduces the paper's analysis exactly), with several the d-dimensional
 /// one ([`crate::mixture`]).
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum Classifier {
     OneFeature(Gmm),
@@ -82,22 +83,21 @@ impl Classifier {
     }
 }
 
-/// A K-kind classifier fitted to a labelled recording's windows, its components named after
-/// kinds, and its score there.
+/// A K-kind classifier fitted to a labelled recording's windows, or read from a model file,
+/// its components named after kinds, and its score on a recording.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct KindsResult {
     pub window: usize,
-    pub features: Vec<&'static str>,
-    /// The recording's kinds: the rows of `confusion`, the columns before "unknown".
-    pub kinds: Vec<&'static str>,
+    pub features: Vec<WindowFeature>,
+    /// The kinds scored: the rows of `confusion`, the columns before "unknown".
+    pub kinds: Vec<AreaKind>,
     pub n: usize,
     pub stationary: usize,
-    pub log_likelihood: f64,
-    pub iterations: usize,
-    pub converged: bool,
+    /// How EM ended, when the model was fitted here (not with `--model`).
+    pub fit: Option<FitSummary>,
     /// The kind each component stands for ([`assign`]).
-    pub component_kinds: Vec<&'static str>,
-    /// `confusion[true][predicted]` over `kinds`, then a last column of unknown windows.
+    pub component_kinds: Vec<AreaKind>,
+    /// `confusion[true][given]` over `kinds`, then a last column of unknown windows.
     pub confusion: Vec<Vec<u64>>,
     /// Windows classified right over all windows.
     pub accuracy: f64,
@@ -107,53 +107,110 @@ pub struct KindsResult {
     pub model: Classifier,
 }
 
-/// Fits `windows`, names the components after the recording's `kinds` by the labels, and
-/// scores every window; those farther than `beyond` σ from every component are unknown.
+/// How a fit ended.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct FitSummary {
+    pub log_likelihood: f64,
+    pub iterations: usize,
+    pub converged: bool,
+}
+
+/// A named classifier as `kinds.json` stores it (one per window size), for scoring another
+/// recording with it.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct StoredKinds {
+    pub window: usize,
+    pub features: Vec<WindowFeature>,
+    pub component_kinds: Vec<AreaKind>,
+    pub model: Classifier,
+}
+
+/// Fits `windows` (labels unused), names the components after the recording's `kinds` by
+/// the labels, and scores every window; those farther than `beyond` σ from every component
+/// are unknown.
 pub fn fit_and_name(
     windows: &FeatureWindows,
     window: usize,
-    features: &[&'static str],
+    features: &[WindowFeature],
     kinds: &[AreaKind],
     opts: &MixtureOptions,
     beyond: f64,
 ) -> Result<KindsResult> {
     let (model, log_likelihood, iterations, converged) = Classifier::fit(windows, opts)?;
+    let classes = classes(&model, windows, beyond);
     let row = |k: &AreaKind| kinds.iter().position(|x| x == k);
-    let classes: Vec<Option<usize>> = windows
-        .values
-        .chunks_exact(windows.dim)
-        .map(|x| model.explains(x, beyond).then(|| model.classify(x)))
-        .collect();
     let mut by_component = vec![vec![0u64; model.components()]; kinds.len()];
     for (class, kind) in classes.iter().zip(&windows.kinds) {
         if let (Some(c), Some(k)) = (class, row(kind)) {
             by_component[k][*c] += 1;
         }
     }
-    let kind_of = assign(&by_component);
-    let mut confusion = vec![vec![0u64; kinds.len() + 1]; kinds.len()];
-    for (class, kind) in classes.iter().zip(&windows.kinds) {
-        if let Some(k) = row(kind) {
-            confusion[k][class.map_or(kinds.len(), |c| kind_of[c])] += 1;
-        }
-    }
-    let right: u64 = (0..kinds.len()).map(|k| confusion[k][k]).sum();
-    Ok(KindsResult {
+    let named = StoredKinds {
         window,
         features: features.to_vec(),
-        kinds: kinds.iter().map(|k| k.name()).collect(),
-        n: windows.len(),
-        stationary: windows.stationary,
+        component_kinds: assign(&by_component).iter().map(|&k| kinds[k]).collect(),
+        model,
+    };
+    let mut result = score(named, windows, &classes, kinds);
+    result.fit = Some(FitSummary {
         log_likelihood,
         iterations,
         converged,
-        component_kinds: kind_of.iter().map(|&k| kinds[k].name()).collect(),
+    });
+    Ok(result)
+}
+
+/// Scores a stored, named classifier on `windows` (computed with its features): every kind
+/// of the recording or of the model is a row.
+pub fn score_stored(stored: StoredKinds, windows: &FeatureWindows, beyond: f64) -> KindsResult {
+    let classes = classes(&stored.model, windows, beyond);
+    let kinds: Vec<AreaKind> = AreaKind::KINDS
+        .into_iter()
+        .filter(|k| windows.kinds.contains(k) || stored.component_kinds.contains(k))
+        .collect();
+    score(stored, windows, &classes, &kinds)
+}
+
+/// Each window's component, `None` when none explains it.
+fn classes(model: &Classifier, windows: &FeatureWindows, beyond: f64) -> Vec<Option<usize>> {
+    windows
+        .values
+        .chunks_exact(windows.dim)
+        .map(|x| model.explains(x, beyond).then(|| model.classify(x)))
+        .collect()
+}
+
+fn score(
+    named: StoredKinds,
+    windows: &FeatureWindows,
+    classes: &[Option<usize>],
+    kinds: &[AreaKind],
+) -> KindsResult {
+    let row = |k: &AreaKind| kinds.iter().position(|x| x == k);
+    let mut confusion = vec![vec![0u64; kinds.len() + 1]; kinds.len()];
+    for (class, kind) in classes.iter().zip(&windows.kinds) {
+        if let Some(k) = row(kind) {
+            let given = class
+                .and_then(|c| row(&named.component_kinds[c]))
+                .unwrap_or(kinds.len());
+            confusion[k][given] += 1;
+        }
+    }
+    let right: u64 = (0..kinds.len()).map(|k| confusion[k][k]).sum();
+    KindsResult {
+        window: named.window,
+        features: named.features,
+        kinds: kinds.to_vec(),
+        n: windows.len(),
+        stationary: windows.stationary,
+        fit: None,
+        component_kinds: named.component_kinds,
         accuracy: right as f64 / windows.len().max(1) as f64,
         macro_accuracy: macro_accuracy(&confusion),
         unknown: classes.iter().filter(|c| c.is_none()).count() as u64,
         confusion,
-        model,
-    })
+        model: named.model,
+    }
 }
 
 /// `kind_of[c]`: the kind (row of `confusion`) component `c` (column) stands for, chosen to
@@ -271,7 +328,7 @@ mod tests {
     use crate::analysis::{analyze_window, split_series};
     use crate::features::{Wheels, window_features};
     use common::TelemetryRow;
-    use common::config::{EstimatorConfig, MixtureFeature, WindowFeature};
+    use common::config::{EstimatorConfig, MixtureFeature};
 
     #[test]
     fn one_feature_and_two_kinds_give_the_papers_analysis_exactly() {
@@ -310,14 +367,21 @@ mod tests {
                 window_features(&series, window, &[WindowFeature::PitchStd], 0.002, wheels)
                     .expect("features");
             let kinds = [AreaKind::Flat, AreaKind::Rough];
-            let ours =
-                fit_and_name(&windows, window, &["pitch-std"], &kinds, &opts, 0.0).expect("kinds");
+            let ours = fit_and_name(
+                &windows,
+                window,
+                &[WindowFeature::PitchStd],
+                &kinds,
+                &opts,
+                0.0,
+            )
+            .expect("kinds");
             assert_eq!(
                 ours.accuracy.to_bits(),
                 paper.accuracy.to_bits(),
                 "w{window}"
             );
-            assert_eq!(ours.component_kinds, vec!["flat", "rough"]);
+            assert_eq!(ours.component_kinds, kinds);
             let without_unknown: Vec<Vec<u64>> =
                 ours.confusion.iter().map(|r| r[..2].to_vec()).collect();
             assert_eq!(without_unknown, paper.confusion, "w{window}");

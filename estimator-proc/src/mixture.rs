@@ -44,10 +44,9 @@ impl MixtureOptions {
     }
 }
 
-/// A fitted mixture over `dim` features.
+/// A mixture's parameters, as `kinds.json` stores them.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Mixture {
-    pub dim: usize,
+pub struct MixtureParams {
     /// Per feature: the data's mean and std the model standardises with.
     pub centre: Vec<f64>,
     pub scale: Vec<f64>,
@@ -56,12 +55,42 @@ pub struct Mixture {
     /// Per component, in standardised units: the mean (d) and the covariance (d × d, row-major).
     pub means: Vec<Vec<f64>>,
     pub covs: Vec<Vec<f64>>,
+}
+
+/// A fitted mixture over `dim` features: its parameters (which it derefs to) and each
+/// covariance's Cholesky factor. Stored as the parameters and read back through
+/// [`Mixture::new`], so a stored model is validated and its factors rebuilt.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(into = "MixtureParams", try_from = "MixtureParams")]
+pub struct Mixture {
+    params: MixtureParams,
+    dim: usize,
     /// Per component: the covariance's lower Cholesky factor (row-major) and
     /// `ln w − ½ (d ln 2π + ln |Σ|)`.
-    #[serde(skip)]
     chol: Vec<Vec<f64>>,
-    #[serde(skip)]
     log_norm: Vec<f64>,
+}
+
+impl std::ops::Deref for Mixture {
+    type Target = MixtureParams;
+
+    fn deref(&self) -> &MixtureParams {
+        &self.params
+    }
+}
+
+impl From<Mixture> for MixtureParams {
+    fn from(m: Mixture) -> Self {
+        m.params
+    }
+}
+
+impl TryFrom<MixtureParams> for Mixture {
+    type Error = EstimatorError;
+
+    fn try_from(p: MixtureParams) -> Result<Self> {
+        Self::new(p.centre, p.scale, p.covariance, p.weights, p.means, p.covs)
+    }
 }
 
 /// The outcome of [`fit`].
@@ -131,28 +160,18 @@ impl Mixture {
             chol.push(l);
         }
         Ok(Self {
+            params: MixtureParams {
+                centre,
+                scale,
+                covariance,
+                weights,
+                means,
+                covs,
+            },
             dim: d,
-            centre,
-            scale,
-            covariance,
-            weights,
-            means,
-            covs,
             chol,
             log_norm,
         })
-    }
-
-    /// The same model with its cached factors rebuilt (after deserialising).
-    pub fn rebuilt(self) -> Result<Self> {
-        Self::new(
-            self.centre,
-            self.scale,
-            self.covariance,
-            self.weights,
-            self.means,
-            self.covs,
-        )
     }
 
     pub fn components(&self) -> usize {
@@ -475,11 +494,15 @@ fn run_em(
         model = m_step(z, dim, &resp, opts)?;
         iterations += 1;
     }
-    let model = Mixture {
-        centre: standard.0.to_vec(),
-        scale: standard.1.to_vec(),
-        ..model
-    };
+    let p = model.params;
+    let model = Mixture::new(
+        standard.0.to_vec(),
+        standard.1.to_vec(),
+        p.covariance,
+        p.weights,
+        p.means,
+        p.covs,
+    )?;
     Ok(MixtureFit {
         model,
         log_likelihood: previous.unwrap_or(f64::NEG_INFINITY),

@@ -9,15 +9,15 @@ use std::process::Command;
 /// 3 flat and 3 rough envs, 500 ticks each, rows interleaved by tick as the sim writes them.
 /// Pitch is an AR(1) walk (correlated like a driving robot's) with area-dependent noise.
 fn write_traces(dir: &Path) -> PathBuf {
-    write_kinds(dir, &[AreaKind::Flat, AreaKind::Rough])
+    write_kinds(dir, &[AreaKind::Flat, AreaKind::Rough], 42)
 }
 
-/// [`write_traces`] with 3 envs per kind of `kinds`; a slope's robots drive as on flat ground,
-/// rolled 0.2 rad.
-fn write_kinds(dir: &Path, kinds: &[AreaKind]) -> PathBuf {
+/// [`write_traces`] with 3 envs per kind of `kinds`, noise from `seed`; a slope's robots drive
+/// as on flat ground, rolled 0.2 rad.
+fn write_kinds(dir: &Path, kinds: &[AreaKind], seed: u64) -> PathBuf {
     let path = dir.join("traces.csv");
     let mut w = csv::Writer::from_path(&path).expect("csv");
-    let mut rng = common::Rng::new(42);
+    let mut rng = common::Rng::new(seed);
     let mut pitch = vec![0.0f64; 3 * kinds.len()];
     for tick in 0..500u64 {
         for env in 0..pitch.len() as u32 {
@@ -189,6 +189,31 @@ fn online_replay_reports_accuracy_and_delay() {
 }
 
 #[test]
+fn a_broken_model_file_is_named_in_one_line() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let traces = write_traces(tmp.path());
+    let bad = tmp.path().join("bad.json");
+    std::fs::write(&bad, "{\"windows\": [{\"window\": 70}]}").expect("write");
+    let out = tmp.path().join("o");
+    let argv = [
+        "estimator-proc",
+        "kinds",
+        traces.to_str().expect("utf8"),
+        "--model",
+        bad.to_str().expect("utf8"),
+        "--out",
+        out.to_str().expect("utf8"),
+    ];
+    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
+    let e = estimator_proc::run(cli).expect_err("broken model");
+    let msg = format!("{e:#}");
+    assert!(
+        msg.contains("bad.json: not a kinds.json model") && !msg.contains('\n'),
+        "{msg}"
+    );
+}
+
+#[test]
 fn the_binary_exits_1_with_one_line_on_bad_input() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let bad = tmp.path().join("bad.csv");
@@ -259,10 +284,8 @@ fn kinds_with_the_papers_one_feature_scores_as_analyze_does() {
 #[test]
 fn kinds_tells_a_slope_by_its_tilt_where_the_papers_feature_cannot() {
     let tmp = tempfile::tempdir().expect("tempdir");
-    let traces = write_kinds(
-        tmp.path(),
-        &[AreaKind::Flat, AreaKind::Rough, AreaKind::Slope],
-    );
+    let three = [AreaKind::Flat, AreaKind::Rough, AreaKind::Slope];
+    let traces = write_kinds(tmp.path(), &three, 42);
     let config = tmp.path().join("c.toml");
     std::fs::write(
         &config,
@@ -288,6 +311,22 @@ fn kinds_tells_a_slope_by_its_tilt_where_the_papers_feature_cannot() {
     let blind = without_tilt["macro_accuracy"].as_f64().expect("macro");
     assert!(blind < 0.8, "{blind}");
     assert!(json["windows"][0]["model"]["several"]["means"].is_array());
+    // The model and its naming, read back, score another recording without fitting.
+    let other = tmp.path().join("other");
+    std::fs::create_dir_all(&other).expect("dir");
+    let held_out = write_kinds(&other, &three, 7);
+    let model = tmp.path().join("k").join("kinds.json");
+    let m = model.to_str().expect("utf8");
+    let scored = kinds(
+        &held_out,
+        &tmp.path().join("h"),
+        &["--config", c, "--model", m],
+    );
+    let h = &scored["windows"][0];
+    assert!(h["fit"].is_null(), "scored, not fitted");
+    assert_eq!(h["component_kinds"], w["component_kinds"]);
+    let held_out_accuracy = h["macro_accuracy"].as_f64().expect("macro");
+    assert!(held_out_accuracy > 0.95, "{held_out_accuracy}");
     for fig in ["fig_kinds_confusion.png", "fig_kinds_scatter_w70.png"] {
         let bytes =
             std::fs::read(tmp.path().join("k").join(fig)).unwrap_or_else(|e| panic!("{fig}: {e}"));

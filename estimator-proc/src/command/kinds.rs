@@ -12,12 +12,13 @@
 use super::{InputArgs, print_output};
 use crate::analysis;
 use crate::features::{self, FeatureWindows};
-use crate::kinds::{self, KindsResult};
+use crate::kinds::{self, KindsResult, StoredKinds};
 use crate::mixture::MixtureOptions;
 use crate::report::{create_dir, to_json, write_file};
 use crate::{figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
+use common::config::WindowFeature;
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -28,15 +29,40 @@ pub struct KindsArgs {
     /// Mixture components, 1 ..= 16 [default: one per terrain kind in the recording].
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=16))]
     pub components: Option<u64>,
+    /// Score the recording with the named classifiers of this `kinds.json` (written by an
+    /// earlier `kinds` run, e.g. on another recording) instead of fitting: its window sizes
+    /// and features, no ablation.
+    #[arg(long)]
+    pub model: Option<PathBuf>,
     /// Output directory for kinds.json and kinds.md (created if missing).
     #[arg(long)]
     pub out: PathBuf,
+}
+
+/// The part of a `kinds.json` that `--model` reads.
+#[derive(Debug, serde::Deserialize)]
+struct StoredReport {
+    windows: Vec<StoredKinds>,
+}
+
+/// Every named classifier in the `kinds.json` at `path`.
+fn read_model(path: &std::path::Path) -> anyhow::Result<Vec<StoredKinds>> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("cannot read the model {}", path.display()))?;
+    let stored: StoredReport = serde_json::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: not a kinds.json model: {e}", path.display()))?;
+    if stored.windows.is_empty() {
+        anyhow::bail!("{}: holds no model", path.display());
+    }
+    Ok(stored.windows)
 }
 
 /// What `kinds.json` holds.
 #[derive(Debug, Serialize)]
 struct KindsReport {
     input: String,
+    /// The `kinds.json` whose classifiers scored the recording (`--model`); none: fitted here.
+    model: Option<String>,
     seed: u64,
     warmup_ticks: usize,
     covariance: common::config::Covariance,
@@ -76,21 +102,36 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     let opts = MixtureOptions::from_config(&cfg, components, seed);
     let names: Vec<&'static str> = cfg.features.iter().map(|f| f.name()).collect();
     tracing::info!(rows = rows.len(), series = series.len(), kinds = kinds.len(), features = ?names, "telemetry read");
-    let fit = |windows: &FeatureWindows, w: usize, names: &[&'static str]| {
-        kinds::fit_and_name(windows, w, names, &kinds, &opts, cfg.unknown_beyond)
+    let fit = |windows: &FeatureWindows, w: usize, features: &[WindowFeature]| {
+        kinds::fit_and_name(windows, w, features, &kinds, &opts, cfg.unknown_beyond)
             .with_context(|| format!("window {w}"))
     };
     let mut results = Vec::new();
     let mut ablation = Vec::new();
     let mut scatter = None;
-    for &w in &cfg.windows {
+    let stored = args.model.as_deref().map(read_model).transpose()?;
+    for named in stored.into_iter().flatten() {
+        let w = named.window;
+        let windows = features::window_features(&series, w, &named.features, gate, wheels)
+            .with_context(|| format!("window {w}"))?;
+        results.push(kinds::score_stored(named, &windows, cfg.unknown_beyond));
+        if w == cfg.online_window && windows.dim > 1 {
+            scatter = Some((windows, results.len() - 1));
+        }
+    }
+    let windows_to_fit = if args.model.is_some() {
+        &[][..]
+    } else {
+        &cfg.windows[..]
+    };
+    for &w in windows_to_fit {
         let windows = features::window_features(&series, w, &cfg.features, gate, wheels)
             .with_context(|| format!("window {w}"))?;
-        results.push(fit(&windows, w, &names)?);
+        results.push(fit(&windows, w, &cfg.features)?);
         if w == cfg.online_window && names.len() > 1 {
             for (i, &without) in names.iter().enumerate() {
                 let keep: Vec<usize> = (0..names.len()).filter(|&j| j != i).collect();
-                let kept: Vec<&'static str> = keep.iter().map(|&j| names[j]).collect();
+                let kept: Vec<WindowFeature> = keep.iter().map(|&j| cfg.features[j]).collect();
                 let r = fit(&windows.select(&keep), w, &kept)?;
                 ablation.push(Ablation {
                     window: w,
@@ -114,6 +155,7 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     }
     let report = KindsReport {
         input: path.display().to_string(),
+        model: args.model.as_ref().map(|m| m.display().to_string()),
         seed,
         warmup_ticks: cfg.warmup_ticks,
         covariance: cfg.covariance,
@@ -133,15 +175,24 @@ fn pct(x: f64) -> String {
     format!("{:.2}", 100.0 * x)
 }
 
+/// `items`' names, joined by `sep`.
+fn names<T: Copy>(items: &[T], name: fn(T) -> &'static str, sep: &str) -> String {
+    items.iter().map(|&i| name(i)).collect::<Vec<_>>().join(sep)
+}
+
 fn to_markdown(r: &KindsReport) -> String {
     let Some(first) = r.windows.first() else {
         return String::new();
     };
+    let named_by = r.model.as_ref().map_or_else(
+        || "Components named by the labels (Hungarian).".to_string(),
+        |m| format!("Classifiers and their naming read from `{m}`."),
+    );
     let mut md = format!(
-        "# Terrain kinds on `{}`\n\nFeatures: {}. Kinds: {}. Components named by the labels (Hungarian).\n\n| window | windows | macro accuracy % | accuracy % | unknown | components → kinds |\n|---:|---:|---:|---:|---:|---|\n",
+        "# Terrain kinds on `{}`\n\nFeatures: {}. Kinds: {}. {named_by}\n\n| window | windows | macro accuracy % | accuracy % | unknown | components → kinds |\n|---:|---:|---:|---:|---:|---|\n",
         r.input,
-        first.features.join(", "),
-        first.kinds.join(", ")
+        names(&first.features, WindowFeature::name, ", "),
+        names(&first.kinds, AreaKind::name, ", ")
     );
     for w in &r.windows {
         md += &format!(
@@ -151,17 +202,17 @@ fn to_markdown(r: &KindsReport) -> String {
             pct(w.macro_accuracy),
             pct(w.accuracy),
             w.unknown,
-            w.component_kinds.join(", ")
+            names(&w.component_kinds, AreaKind::name, ", ")
         );
     }
     for w in &r.windows {
         md += &format!(
             "\n## Window {}: windows of each true kind (rows) by the kind given (columns)\n\n| true \\ given | {} | unknown |\n|---|{}---:|\n",
             w.window,
-            w.kinds.join(" | "),
+            names(&w.kinds, AreaKind::name, " | "),
             "---:|".repeat(w.kinds.len())
         );
-        for (kind, row) in w.kinds.iter().zip(&w.confusion) {
+        for (kind, row) in w.kinds.iter().map(|k| k.name()).zip(&w.confusion) {
             let total: u64 = row.iter().sum::<u64>().max(1);
             let cells: Vec<String> = row
                 .iter()

@@ -7,7 +7,6 @@ use super::{
 use crate::Result;
 use crate::features::FeatureWindows;
 use crate::kinds::{Classifier, KindsResult};
-use common::AreaKind;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -28,7 +27,7 @@ pub fn draw_kinds_confusions(path: &Path, results: &[&KindsResult]) -> Result<()
         .iter()
         .zip(&counts)
         .map(|(r, counts)| {
-            let mut columns: Vec<String> = r.kinds.iter().map(ToString::to_string).collect();
+            let mut columns: Vec<String> = r.kinds.iter().map(|k| k.name().to_string()).collect();
             if r.unknown > 0 {
                 columns.push("unknown".into());
             }
@@ -38,7 +37,7 @@ pub fn draw_kinds_confusions(path: &Path, results: &[&KindsResult]) -> Result<()
                     r.window,
                     100.0 * r.macro_accuracy
                 ),
-                rows: r.kinds.iter().map(ToString::to_string).collect(),
+                rows: r.kinds.iter().map(|k| k.name().to_string()).collect(),
                 columns,
                 counts,
                 x_desc: "kind given",
@@ -70,13 +69,14 @@ pub fn draw_feature_scatter(path: &Path, windows: &FeatureWindows, r: &KindsResu
         padded_range((0..windows.len()).map(|i| point(i).0)),
         padded_range((0..windows.len()).map(|i| point(i).1)),
     );
-    let kind_of = |name: &str| AreaKind::KINDS.into_iter().find(|k| k.name() == name);
     with_canvas(path, (1000, 800), |root| {
         let mut chart = ChartBuilder::on(root)
             .caption(
                 format!(
                     "Windows of {} ticks: {} against {}",
-                    r.window, r.features[1], r.features[0]
+                    r.window,
+                    r.features[1].name(),
+                    r.features[0].name()
                 ),
                 (FONT, 24).into_font().style(FontStyle::Bold),
             )
@@ -86,16 +86,16 @@ pub fn draw_feature_scatter(path: &Path, windows: &FeatureWindows, r: &KindsResu
             .build_cartesian_2d(x_range.0..x_range.1, y_range.0..y_range.1)?;
         chart
             .configure_mesh()
-            .x_desc(r.features[0])
-            .y_desc(r.features[1])
+            .x_desc(r.features[0].name())
+            .y_desc(r.features[1].name())
             .x_label_formatter(&axis_number)
             .y_label_formatter(&axis_number)
             .label_style((FONT, 16))
             .axis_desc_style((FONT, 18))
             .light_line_style(GRID)
             .draw()?;
-        for name in &r.kinds {
-            let Some(kind) = kind_of(name) else { continue };
+        for &kind in &r.kinds {
+            let name = kind.name();
             let mine: Vec<usize> = (0..windows.len())
                 .filter(|&i| windows.kinds[i] == kind)
                 .collect();
@@ -110,8 +110,8 @@ pub fn draw_feature_scatter(path: &Path, windows: &FeatureWindows, r: &KindsResu
                 .label(format!("{name} (n = {})", mine.len()))
                 .legend(move |(x, y)| Circle::new((x + 9, y), 5, color.filled()));
         }
-        for (c, name) in r.component_kinds.iter().enumerate() {
-            let color = kind_of(name).map_or(BLACK, area_color);
+        for (c, &kind) in r.component_kinds.iter().enumerate() {
+            let color = area_color(kind);
             // The two features' marginal covariance, back in raw units.
             let (sx, sy) = (model.scale[0], model.scale[1]);
             let cov = &model.covs[c];

@@ -144,8 +144,11 @@ fn a_model_survives_a_round_trip_through_json() {
         .model;
     let text = serde_json::to_string(&model).expect("json");
     let back: Mixture = serde_json::from_str(&text).expect("parse");
-    let back = back.rebuilt().expect("factors");
     for p in data.chunks_exact(2) {
         assert_eq!(back.classify(p), model.classify(p));
     }
+    // A stored model is validated as it is read.
+    let broken = text.replacen("\"weights\":[", "\"weights\":[-", 1);
+    let e = serde_json::from_str::<Mixture>(&broken).expect_err("negative weight");
+    assert!(e.to_string().contains("invalid mixture"), "{e}");
 }
