@@ -3,6 +3,7 @@
 //! estimates on `terrain` (SPEC S7 online; DESIGN §1).
 
 use crate::OnlineEstimator;
+use common::AreaKind;
 use common::config::AttitudeSource;
 use common::ipc::{self, Bus};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
@@ -49,10 +50,10 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
                     }
                 };
                 let class = e.class.map_or(wire::CLASS_UNKNOWN, |c| c.min(254) as u8);
-                if class != wire::CLASS_UNKNOWN {
+                if let Some(right) = scores(class, t.area) {
                     // Labels score the estimator; they never reach the fit.
                     scored += 1;
-                    correct += u64::from((class > 0) == (t.area > 0));
+                    correct += u64::from(right);
                 }
                 out[env] = TerrainEstimate {
                     env: t.env,
@@ -83,4 +84,29 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         "estimator done"
     );
     Ok(())
+}
+
+/// Whether an estimate of `class` is right on ground `area` (`AreaKind::code`), or `None`
+/// when it is not scored: an unknown class, or ground other than SPEC S7's flat and rough,
+/// which the two-class estimator cannot name (a slope or gravel would count as "rough").
+fn scores(class: u8, area: u8) -> Option<bool> {
+    let flat = AreaKind::Flat.code();
+    let rough = AreaKind::Rough.code();
+    (class != wire::CLASS_UNKNOWN && (area == flat || area == rough))
+        .then_some((class > 0) == (area == rough))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_flat_and_rough_ground_is_scored() {
+        assert_eq!(scores(0, AreaKind::Flat.code()), Some(true));
+        assert_eq!(scores(1, AreaKind::Flat.code()), Some(false));
+        assert_eq!(scores(1, AreaKind::Rough.code()), Some(true));
+        assert_eq!(scores(wire::CLASS_UNKNOWN, AreaKind::Rough.code()), None);
+        assert_eq!(scores(1, AreaKind::Slope.code()), None);
+        assert_eq!(scores(0, AreaKind::Gravel.code()), None);
+    }
 }
