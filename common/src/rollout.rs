@@ -86,7 +86,10 @@ pub fn chunk_refusal(h: &RolloutHeader, data: &[Transition]) -> Option<&'static 
     if transitions.iter().any(|x| x.env as usize >= n) {
         return Some("env id out of range");
     }
-    if transitions.iter().any(|x| x.slot > 2) {
+    if transitions
+        .iter()
+        .any(|x| usize::from(x.slot) >= crate::config::PolicySlot::ALL.len())
+    {
         return Some("unknown policy slot");
     }
     if !transitions.iter().all(Transition::is_finite)
@@ -124,8 +127,10 @@ mod tests {
         bad[3].env = 2;
         assert_eq!(chunk_refusal(&h, &bad), Some("env id out of range"));
         let mut bad = good.clone();
-        bad[0].slot = 3;
+        bad[0].slot = 5;
         assert_eq!(chunk_refusal(&h, &bad), Some("unknown policy slot"));
+        bad[0].slot = 4;
+        assert_eq!(chunk_refusal(&h, &bad), None, "the gravel slot");
         for poison in [f32::NAN, f32::INFINITY] {
             let mut bad = good.clone();
             bad[1].reward = poison;

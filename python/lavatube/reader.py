@@ -16,7 +16,7 @@ from . import wire
 from .ipc import subscribe
 
 #: Policy slots, each with its learner's `policy/<slot>` service.
-SLOTS = ("general", "flat", "rough")
+SLOTS = ("general", "flat", "rough", "slope", "gravel")
 
 
 @functools.cache

@@ -57,7 +57,7 @@ struct Inbox {
     rx: Vec<(PolicySlot, Receiver<f32, PolicyHeader>)>,
     policies: Option<PolicySet>,
     /// Header of the policy each slot acts with; `learner` 0: none yet.
-    heads: [PolicyHeader; 3],
+    heads: [PolicyHeader; PolicySlot::ALL.len()],
     seed: u64,
     /// Sample actions (training) or act with the mean (`sim.mean-actions`, evaluation).
     stochastic: bool,
@@ -73,7 +73,7 @@ impl Inbox {
         Ok(Self {
             rx,
             policies: None,
-            heads: [PolicyHeader::default(); 3],
+            heads: [PolicyHeader::default(); PolicySlot::ALL.len()],
             seed,
             stochastic,
             refused: Refusals::new("policy"),

@@ -8,16 +8,16 @@ use common::config::{Acting, PolicySlot};
 
 /// The sim's policies, one per slot, with the version each acts at.
 pub struct PolicySet {
-    slots: [Option<PolicyController>; 3],
-    versions: [u32; 3],
+    slots: [Option<PolicyController>; PolicySlot::ALL.len()],
+    versions: [u32; PolicySlot::ALL.len()],
 }
 
 impl PolicySet {
     /// A set with one policy; more slots fill as their learners publish.
     pub fn new(slot: PolicySlot, ctrl: PolicyController, version: u32) -> Self {
         let mut set = Self {
-            slots: [None, None, None],
-            versions: [0; 3],
+            slots: std::array::from_fn(|_| None),
+            versions: [0; PolicySlot::ALL.len()],
         };
         set.insert(slot, ctrl, version);
         set
@@ -147,6 +147,17 @@ mod tests {
         );
         let mut fixed = Switcher::new(Acting::Rough, 1, 2);
         assert_eq!(fixed.update(&[0, 0]), [Rough, Rough]);
+    }
+
+    /// Beyond SPEC S8's two classes: a K-kind estimate is a kind's code, and each code
+    /// switches to that kind's specialist.
+    #[test]
+    fn kind_codes_switch_to_their_specialists() {
+        use PolicySlot::{Flat, Gravel, Rough, Slope};
+        let mut s = Switcher::new(Acting::Switch, 1, 4);
+        assert_eq!(s.update(&[0, 1, 3, 4]), [Flat, Rough, Slope, Gravel]);
+        // Code 2 (the mixed course) names no terrain: nothing changes.
+        assert_eq!(s.update(&[2, 2, 2, 2]), [Flat, Rough, Slope, Gravel]);
     }
 
     #[test]

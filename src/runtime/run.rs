@@ -554,7 +554,7 @@ impl Supervision<'_, '_> {
 
     /// Answers one swap request: whether it happened, and what to tell the requester.
     fn swap(&mut self, req: &common::wire::SwapRequest) -> (bool, String) {
-        let slot = PolicySlot::ALL[(req.slot as usize).min(2)];
+        let slot = PolicySlot::ALL[(req.slot as usize).min(PolicySlot::ALL.len() - 1)];
         let Some(learner) = self
             .members
             .iter_mut()

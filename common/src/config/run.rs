@@ -1,7 +1,7 @@
 //! `[run]`: how runs are named, seeded and paced, and the policy slots their learners fill.
 
-use super::ConfigError;
 use super::range::invalid;
+use super::{AreaKind, ConfigError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
@@ -52,10 +52,18 @@ pub enum PolicySlot {
     General,
     Flat,
     Rough,
+    Slope,
+    Gravel,
 }
 
 impl PolicySlot {
-    pub const ALL: [PolicySlot; 3] = [PolicySlot::General, PolicySlot::Flat, PolicySlot::Rough];
+    pub const ALL: [PolicySlot; 5] = [
+        PolicySlot::General,
+        PolicySlot::Flat,
+        PolicySlot::Rough,
+        PolicySlot::Slope,
+        PolicySlot::Gravel,
+    ];
 
     /// The slot's index on the wire (`PolicyHeader::slot`, `Transition::slot`).
     pub fn index(self) -> usize {
@@ -67,6 +75,8 @@ impl PolicySlot {
             PolicySlot::General => "general",
             PolicySlot::Flat => "flat",
             PolicySlot::Rough => "rough",
+            PolicySlot::Slope => "slope",
+            PolicySlot::Gravel => "gravel",
         }
     }
 
@@ -76,34 +86,44 @@ impl PolicySlot {
             PolicySlot::General => "learner",
             PolicySlot::Flat => "learner-flat",
             PolicySlot::Rough => "learner-rough",
+            PolicySlot::Slope => "learner-slope",
+            PolicySlot::Gravel => "learner-gravel",
         }
     }
 
-    /// Parses a slot name (`general`, `flat`, `rough`), for command lines.
+    /// Parses a slot name (`general`, `flat`, `rough`, `slope`, `gravel`), for command lines.
     pub fn parse(name: &str) -> Result<Self, String> {
         Self::ALL
             .into_iter()
             .find(|s| s.name() == name)
-            .ok_or_else(|| format!("unknown policy slot `{name}`: use general, flat or rough"))
+            .ok_or_else(|| {
+                format!("unknown policy slot `{name}`: use general, flat, rough, slope or gravel")
+            })
     }
 
-    /// The estimator class whose transitions the slot's learner trains on (class 0 is the
-    /// mixture component with the lowest mean, i.e. flat); `None`: all.
-    pub fn class(self) -> Option<u8> {
+    /// The terrain kind a specialist slot is for; `None` for the general slot.
+    pub fn kind(self) -> Option<AreaKind> {
         match self {
             PolicySlot::General => None,
-            PolicySlot::Flat => Some(0),
-            PolicySlot::Rough => Some(1),
+            PolicySlot::Flat => Some(AreaKind::Flat),
+            PolicySlot::Rough => Some(AreaKind::Rough),
+            PolicySlot::Slope => Some(AreaKind::Slope),
+            PolicySlot::Gravel => Some(AreaKind::Gravel),
         }
     }
 
-    /// The specialist for an estimator class (SPEC S8), if there is one.
+    /// The estimator class whose transitions the slot's learner trains on: its kind's code
+    /// (`AreaKind::code`; the two-class estimator's class 0, the lowest-mean component, is
+    /// flat, and 1 rough); `None`: all.
+    pub fn class(self) -> Option<u8> {
+        self.kind().map(AreaKind::code)
+    }
+
+    /// The specialist for an estimator class, a kind's code (SPEC S8), if there is one.
     pub fn for_class(class: u8) -> Option<Self> {
-        match class {
-            0 => Some(PolicySlot::Flat),
-            1 => Some(PolicySlot::Rough),
-            _ => None,
-        }
+        Self::ALL
+            .into_iter()
+            .find(|s| s.kind().is_some_and(|k| k.code() == class))
     }
 }
 
@@ -114,6 +134,8 @@ pub enum Acting {
     General,
     Flat,
     Rough,
+    Slope,
+    Gravel,
     /// The specialist for the estimator's current class, changed only after the estimate has
     /// held for `switch-dwell` ticks (SPEC S8).
     Switch,
@@ -128,6 +150,8 @@ impl Acting {
             Acting::General => Some(PolicySlot::General),
             Acting::Flat => Some(PolicySlot::Flat),
             Acting::Rough => Some(PolicySlot::Rough),
+            Acting::Slope => Some(PolicySlot::Slope),
+            Acting::Gravel => Some(PolicySlot::Gravel),
             Acting::Switch | Acting::External => None,
         }
     }
@@ -215,6 +239,16 @@ mod tests {
         assert_eq!(c.sim.acting.fixed(), None);
         assert_eq!(PolicySlot::for_class(1), Some(PolicySlot::Rough));
         assert_eq!(PolicySlot::Flat.class(), Some(0));
+        // Beyond the paper: a specialist per terrain kind, its class the kind's code.
+        assert_eq!(PolicySlot::for_class(3), Some(PolicySlot::Slope));
+        assert_eq!(PolicySlot::Gravel.class(), Some(4));
+        assert_eq!(
+            PolicySlot::for_class(2),
+            None,
+            "the mixed course is no terrain"
+        );
+        assert_eq!(PolicySlot::parse("gravel"), Ok(PolicySlot::Gravel));
+        assert_eq!(Acting::Slope.fixed(), Some(PolicySlot::Slope));
         let err = parse("[run]\nlearners = [\"flat\", \"flat\"]\n").expect_err("twice");
         assert!(err.to_string().contains("run.learners"), "{err}");
         let err = parse("[run]\ninit-from = \"/nonexistent.ckpt\"\n").expect_err("missing");
