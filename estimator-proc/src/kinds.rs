@@ -66,6 +66,24 @@ impl Classifier {
         }
     }
 
+    /// The most probable component of a window's features `x` and its posterior.
+    pub fn posterior(&self, x: &[f64]) -> (usize, f64) {
+        let mut p = vec![0.0; self.components()];
+        match self {
+            Self::OneFeature(g) => {
+                g.posteriors(x[0], &mut p);
+            }
+            Self::Several(m) => {
+                let mut z = vec![0.0; x.len()];
+                m.standardise(x, &mut z);
+                let lse = m.joint_log(&z, &mut p);
+                p.iter_mut().for_each(|v| *v = (*v - lse).exp());
+            }
+        }
+        let c = (0..p.len()).fold(0, |b, c| if p[c] > p[b] { c } else { b });
+        (c, p[c])
+    }
+
     /// Whether some component explains `x`: within `beyond` standard deviations
     /// (Mahalanobis) of its mean; 0 accepts every window.
     pub fn explains(&self, x: &[f64], beyond: f64) -> bool {
@@ -123,6 +141,24 @@ pub struct StoredKinds {
     pub features: Vec<WindowFeature>,
     pub component_kinds: Vec<AreaKind>,
     pub model: Classifier,
+}
+
+/// What `kinds.json` holds of its classifiers.
+#[derive(Debug, Deserialize)]
+struct StoredReport {
+    windows: Vec<StoredKinds>,
+}
+
+/// Every named classifier in the `kinds.json` at `path`.
+pub fn read_stored(path: &std::path::Path) -> anyhow::Result<Vec<StoredKinds>> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| anyhow::anyhow!("cannot read the model {}: {e}", path.display()))?;
+    let stored: StoredReport = serde_json::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: not a kinds.json model: {e}", path.display()))?;
+    if stored.windows.is_empty() {
+        anyhow::bail!("{}: holds no model", path.display());
+    }
+    Ok(stored.windows)
 }
 
 /// Fits `windows` (labels unused), names the components after the recording's `kinds` by

@@ -5,7 +5,9 @@
 //! ([`gmm`]); offline, the paper's experiment on recorded telemetry with its table and figures
 //! ([`analysis`], [`command::analyze`]); online, a per-env classifier with periodic refits and an
 //! optional HMM filter for the runtime ([`online`]), and its replay on recordings
-//! ([`evaluation`]).
+//! ([`evaluation`]). Beyond the paper: several features per window ([`features`]), a
+//! d-dimensional mixture ([`mixture`]) whose components are named after terrain kinds on a
+//! labelled recording ([`kinds`]), and that named classifier online ([`online_kinds`]).
 //!
 //! Depends on `common` only among the lavatube crates (no proc crate links another).
 //!
@@ -27,6 +29,7 @@ pub mod gmm;
 pub mod kinds;
 pub mod mixture;
 pub mod online;
+pub mod online_kinds;
 pub mod report;
 pub mod rolling;
 pub mod traces;

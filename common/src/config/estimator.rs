@@ -69,6 +69,12 @@ pub struct EstimatorConfig {
     /// component is "unknown" rather than any kind; 0 classifies every window. [0, 100].
     /// Default 0.
     pub unknown_beyond: f64,
+    /// Online, beyond SPEC S7: a `kinds.json` of `estimator-proc kinds` whose classifier
+    /// for `online-window` names each env's windows after terrain kinds, over its own
+    /// features; estimates are kind codes (`AreaKind::code`), so `sim.acting = "switch"`
+    /// picks among the specialists of every kind. Never refitted; excludes `model`.
+    /// Relative to the config file. Default none.
+    pub kinds_model: Option<PathBuf>,
 }
 
 /// A number that describes one window of one robot's ticks, and what it separates.
@@ -170,6 +176,7 @@ impl Default for EstimatorConfig {
             features: vec![WindowFeature::PitchStd],
             covariance: Covariance::Full,
             unknown_beyond: 0.0,
+            kinds_model: None,
         }
     }
 }
@@ -224,7 +231,15 @@ impl EstimatorConfig {
             ));
         }
         in_range("estimator.unknown-beyond", self.unknown_beyond, 0.0, 100.0)?;
+        if self.model.is_some() && self.kinds_model.is_some() {
+            return Err(invalid(
+                "estimator.kinds-model",
+                &self.kinds_model,
+                "excludes estimator.model: give one classifier",
+            ));
+        }
         self.offline_mixture()?;
+        self.offline_kinds()?;
         Ok(())
     }
 }

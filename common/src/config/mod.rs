@@ -25,7 +25,7 @@ mod tests;
 pub use estimator::{Covariance, EstimatorConfig, MixtureFeature, WindowFeature};
 pub use external::ExternalConfig;
 pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};
-pub use model_file::OfflineMixture;
+pub use model_file::{OfflineKinds, OfflineMixture};
 pub use net::{MIN_KEY_BYTES, NetConfig};
 pub use ppo::{PpoConfig, PpoEngine};
 pub use reproduce::ReproduceConfig;
@@ -104,6 +104,7 @@ impl Config {
             cfg.run.init_from.iter_mut().for_each(resolve);
             cfg.run.frozen.values_mut().for_each(resolve);
             cfg.estimator.model.iter_mut().for_each(resolve);
+            cfg.estimator.kinds_model.iter_mut().for_each(resolve);
             cfg.net.key_file.iter_mut().for_each(resolve);
             cfg.sim
                 .terrain

@@ -1,8 +1,9 @@
-//! Reading `estimator.model`: the offline analysis's `results.json`, checked against the
-//! config that names it.
+//! Reading `estimator.model`, the offline analysis's `results.json`, and
+//! `estimator.kinds-model`, a `kinds.json` of `estimator-proc kinds`: each checked against
+//! the config that names it.
 
 use super::range::invalid;
-use super::{ConfigError, EstimatorConfig, MixtureFeature};
+use super::{AreaKind, ConfigError, EstimatorConfig, MixtureFeature, WindowFeature};
 use serde::Deserialize;
 
 /// A terrain mixture fitted offline, as [`EstimatorConfig::model`] holds it: components by
@@ -70,6 +71,61 @@ impl EstimatorConfig {
     }
 }
 
+/// What the config checks of a `kinds.json` classifier (the mixture itself is read by
+/// `estimator-proc`): its window, features and the kind each component stands for.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+pub struct OfflineKinds {
+    pub window: usize,
+    pub features: Vec<WindowFeature>,
+    pub component_kinds: Vec<AreaKind>,
+}
+
+impl EstimatorConfig {
+    /// The classifier of [`kinds_model`](Self::kinds_model) for `online-window`; `None`
+    /// without one.
+    pub fn offline_kinds(&self) -> Result<Option<OfflineKinds>, ConfigError> {
+        #[derive(Deserialize)]
+        struct Report {
+            windows: Vec<OfflineKinds>,
+        }
+        let Some(path) = &self.kinds_model else {
+            return Ok(None);
+        };
+        let bad = |reason: String| invalid("estimator.kinds-model", path, reason);
+        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+        let report: Report = serde_json::from_str(&text)
+            .map_err(|e| bad(format!("not the kinds.json of `estimator-proc kinds`: {e}")))?;
+        let found: Vec<usize> = report.windows.iter().map(|m| m.window).collect();
+        let m = report
+            .windows
+            .into_iter()
+            .find(|m| m.window == self.online_window)
+            .ok_or_else(|| {
+                bad(format!(
+                    "holds classifiers for windows {found:?}, none for estimator.online-window {}",
+                    self.online_window
+                ))
+            })?;
+        if m.features.contains(&WindowFeature::Slip) {
+            return Err(bad(
+                "its classifier uses `slip`, which needs each tick's wheel command: telemetry \
+                 does not carry it online"
+                    .into(),
+            ));
+        }
+        if let Some(k) = m.component_kinds.iter().find(|k| **k == AreaKind::Mixed) {
+            return Err(bad(format!(
+                "names a component `{}`, not a terrain kind",
+                k.name()
+            )));
+        }
+        if m.component_kinds.is_empty() {
+            return Err(bad("its classifier has no component".into()));
+        }
+        Ok(Some(m))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -132,5 +188,47 @@ mod tests {
             ..Config::default()
         };
         assert!(cfg.validate().is_err(), "checked with the config");
+    }
+
+    /// An online K-kind classifier must exist for the online window and use only features
+    /// telemetry carries.
+    #[test]
+    fn a_kinds_model_is_read_for_the_online_window() {
+        let dir = tempfile::tempdir().expect("tempdir");
+        let path = dir.path().join("kinds.json");
+        let write = |window: usize, features: &str| {
+            let text = format!(
+                r#"{{"input": "t.csv", "windows": [{{"window": {window}, "features": [{features}], "component_kinds": ["flat", "slope", "rough"], "model": {{}}}}]}}"#
+            );
+            std::fs::write(&path, text).expect("write");
+        };
+        write(70, r#""pitch-std", "mean-tilt""#);
+        let mut e = EstimatorConfig {
+            kinds_model: Some(path.clone()),
+            ..EstimatorConfig::default()
+        };
+        let m = e.offline_kinds().expect("read").expect("a model");
+        assert_eq!(
+            m.component_kinds,
+            [AreaKind::Flat, AreaKind::Slope, AreaKind::Rough]
+        );
+        e.online_window = 40;
+        let err = e.offline_kinds().expect_err("no window 40").to_string();
+        assert!(
+            err.contains("windows [70], none for estimator.online-window 40"),
+            "{err}"
+        );
+        e.online_window = 70;
+        write(70, r#""pitch-std", "slip""#);
+        let err = e.offline_kinds().expect_err("slip").to_string();
+        assert!(err.contains("uses `slip`"), "{err}");
+        write(70, r#""pitch-std""#);
+        e.model = Some(path.clone());
+        let cfg = Config {
+            estimator: e,
+            ..Config::default()
+        };
+        let err = cfg.validate().expect_err("two models").to_string();
+        assert!(err.contains("estimator.kinds-model"), "{err}");
     }
 }

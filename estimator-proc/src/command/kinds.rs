@@ -12,7 +12,7 @@
 use super::{InputArgs, print_output};
 use crate::analysis;
 use crate::features::{self, FeatureWindows};
-use crate::kinds::{self, KindsResult, StoredKinds};
+use crate::kinds::{self, KindsResult};
 use crate::mixture::MixtureOptions;
 use crate::report::{create_dir, to_json, write_file};
 use crate::{figures, traces};
@@ -37,24 +37,6 @@ pub struct KindsArgs {
     /// Output directory for kinds.json and kinds.md (created if missing).
     #[arg(long)]
     pub out: PathBuf,
-}
-
-/// The part of a `kinds.json` that `--model` reads.
-#[derive(Debug, serde::Deserialize)]
-struct StoredReport {
-    windows: Vec<StoredKinds>,
-}
-
-/// Every named classifier in the `kinds.json` at `path`.
-fn read_model(path: &std::path::Path) -> anyhow::Result<Vec<StoredKinds>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("cannot read the model {}", path.display()))?;
-    let stored: StoredReport = serde_json::from_str(&text)
-        .map_err(|e| anyhow::anyhow!("{}: not a kinds.json model: {e}", path.display()))?;
-    if stored.windows.is_empty() {
-        anyhow::bail!("{}: holds no model", path.display());
-    }
-    Ok(stored.windows)
 }
 
 /// What `kinds.json` holds.
@@ -109,7 +91,7 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     let mut results = Vec::new();
     let mut ablation = Vec::new();
     let mut scatter = None;
-    let stored = args.model.as_deref().map(read_model).transpose()?;
+    let stored = args.model.as_deref().map(kinds::read_stored).transpose()?;
     for named in stored.into_iter().flatten() {
         let w = named.window;
         let windows = features::window_features(&series, w, &named.features, gate, wheels)

@@ -1,13 +1,84 @@
 //! `estimator-proc serve`: the online estimator inside a run. Reads every telemetry tick,
-//! classifies each env's terrain from its rolling pitch statistics, and publishes the
-//! estimates on `terrain` (SPEC S7 online; DESIGN §1).
+//! classifies each env's terrain from its rolling pitch statistics (or, with
+//! `estimator.kinds-model`, names its terrain kind from the stored classifier's features),
+//! and publishes the estimates on `terrain` (SPEC S7 online; DESIGN §1).
 
 use crate::OnlineEstimator;
+use crate::online_kinds::KindsEstimator;
 use common::AreaKind;
 use common::config::AttitudeSource;
 use common::ipc::{self, Bus};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
 use std::time::Duration;
+
+/// The classifier a run serves: SPEC S7's two classes, or terrain kinds by a stored,
+/// named classifier (`estimator.kinds-model`).
+enum Classifying {
+    Classes(OnlineEstimator),
+    Kinds(KindsEstimator),
+}
+
+impl Classifying {
+    fn reset_env(&mut self, env: usize) -> crate::Result<()> {
+        match self {
+            Classifying::Classes(e) => e.reset_env(env),
+            Classifying::Kinds(e) => e.reset_env(env),
+        }
+    }
+
+    /// Env `t.env`'s estimate after tick `t`, its attitude read from `signal`.
+    fn observe(&mut self, t: &EnvTick, signal: AttitudeSource) -> crate::Result<TerrainEstimate> {
+        let env = t.env as usize;
+        let at = [f64::from(t.pos[0]), f64::from(t.pos[2])];
+        let (sin_pitch, euler) = match signal {
+            AttitudeSource::Truth => (t.sin_pitch, t.euler),
+            AttitudeSource::Imu => (t.imu_sin_pitch, t.imu_euler),
+        };
+        let (class, posterior, window_std, window) = match self {
+            Classifying::Classes(est) => {
+                let e = est.observe_at(env, f64::from(sin_pitch), Some(at))?;
+                let class = e.class.map_or(wire::CLASS_UNKNOWN, |c| c.min(254) as u8);
+                (class, e.posterior, e.window_std, e.window)
+            }
+            Classifying::Kinds(est) => {
+                let sin_roll = f64::from(euler[2]).sin();
+                let e = est.observe(env, f64::from(sin_pitch), sin_roll, at)?;
+                let class = e.kind.map_or(wire::CLASS_UNKNOWN, AreaKind::code);
+                (class, e.posterior, e.pitch_std, est.window())
+            }
+        };
+        Ok(TerrainEstimate {
+            env: t.env,
+            class,
+            posterior: posterior as f32,
+            window_std: window_std.unwrap_or(0.0) as f32,
+            window: window as u32,
+            ..TerrainEstimate::default()
+        })
+    }
+
+    /// Whether an estimate of `class` on ground `area` is right; `None`: not scored.
+    fn scores(&self, class: u8, area: u8) -> Option<bool> {
+        match self {
+            Classifying::Classes(_) => scores(class, area),
+            Classifying::Kinds(_) => (class != wire::CLASS_UNKNOWN).then_some(class == area),
+        }
+    }
+
+    fn refits(&self) -> u64 {
+        match self {
+            Classifying::Classes(e) => e.stats().fits,
+            Classifying::Kinds(_) => 0,
+        }
+    }
+
+    fn stationary(&self) -> u64 {
+        match self {
+            Classifying::Classes(e) => e.stats().stationary,
+            Classifying::Kinds(e) => e.stationary(),
+        }
+    }
+}
 
 pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let cfg = super::load_config(Some(&args.config))?;
@@ -16,14 +87,25 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let control = bus.control_listener()?;
     let rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let tx = bus.sender::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None, n)?;
-    let mut est = OnlineEstimator::from_config(&cfg.estimator, n, cfg.run.seed)?
-        .gate_stationary(cfg.min_step_travel());
+    let mut est = if cfg.estimator.kinds_model.is_some() {
+        Classifying::Kinds(KindsEstimator::from_config(
+            &cfg.estimator,
+            n,
+            cfg.min_step_travel(),
+        )?)
+    } else {
+        Classifying::Classes(
+            OnlineEstimator::from_config(&cfg.estimator, n, cfg.run.seed)?
+                .gate_stationary(cfg.min_step_travel()),
+        )
+    };
     let mut out = vec![TerrainEstimate::default(); n];
     let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
     tracing::info!(
         envs = n,
         window = cfg.estimator.online_window,
         signal = ?cfg.estimator.signal,
+        kinds = matches!(est, Classifying::Kinds(_)),
         "estimator serving"
     );
     while !bus.stop_requested(&control) {
@@ -37,39 +119,26 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
                     // A respawned robot starts a new series: its old window says nothing.
                     est.reset_env(env)?;
                 }
-                let at = [f64::from(t.pos[0]), f64::from(t.pos[2])];
-                let signal = match cfg.estimator.signal {
-                    AttitudeSource::Truth => t.sin_pitch,
-                    AttitudeSource::Imu => t.imu_sin_pitch,
-                };
-                let e = match est.observe_at(env, f64::from(signal), Some(at)) {
+                let e = match est.observe(t, cfg.estimator.signal) {
                     Ok(e) => e,
                     Err(err) => {
                         tracing::warn!(env, error = %err, "observation skipped");
                         continue;
                     }
                 };
-                let class = e.class.map_or(wire::CLASS_UNKNOWN, |c| c.min(254) as u8);
-                if let Some(right) = scores(class, t.area) {
+                if let Some(right) = est.scores(e.class, t.area) {
                     // Labels score the estimator; they never reach the fit.
                     scored += 1;
                     correct += u64::from(right);
                 }
-                out[env] = TerrainEstimate {
-                    env: t.env,
-                    class,
-                    posterior: e.posterior as f32,
-                    window_std: e.window_std.unwrap_or(0.0) as f32,
-                    window: e.window as u32,
-                    ..TerrainEstimate::default()
-                };
+                out[env] = e;
             }
             let header = TerrainHeader {
                 tick: h.tick,
                 scored,
                 correct,
                 envs: n as u32,
-                refits: est.stats().fits as u32,
+                refits: est.refits() as u32,
             };
             tx.send(header, &out)?;
             ticks += 1;
@@ -79,8 +148,8 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         ticks,
         scored,
         correct,
-        refits = est.stats().fits,
-        stationary_windows = est.stats().stationary,
+        refits = est.refits(),
+        stationary_windows = est.stationary(),
         "estimator done"
     );
     Ok(())

@@ -1,0 +1,285 @@
+//! Online K-kind estimation (`estimator.kinds-model`; beyond SPEC S7, which names two
+//! classes). Each env's last `online-window` ticks are described by the stored classifier's
+//! features, computed by [`crate::features`] exactly as `estimator-proc kinds` computed them
+//! when it fitted and named the classifier, and the window is named after the kind of its
+//! most probable component. Never refitted: the naming came from a labelled recording, which
+//! a run does not have.
+//!
+//! As online SPEC S7 estimation: windows the robot barely moved in (`estimator.min-speed`)
+//! keep the env's previous estimate, and a respawn ([`KindsEstimator::reset_env`]) starts a
+//! new window. A window no component explains (`estimator.unknown-beyond`) is unknown.
+
+use crate::analysis::Series;
+use crate::features::{self, Wheels};
+use crate::kinds::StoredKinds;
+use crate::rolling::RollingPath;
+use crate::{EstimatorError, Result};
+use common::AreaKind;
+use common::config::{EstimatorConfig, WindowFeature};
+use std::collections::VecDeque;
+
+/// One env's estimate after one tick.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct KindEstimate {
+    /// The kind the window looks like; `None` until a full moving window, or when no
+    /// component explains it.
+    pub kind: Option<AreaKind>,
+    /// The posterior of the chosen component; 0 without a kind.
+    pub posterior: f64,
+    /// The window's std of sin θx when the classifier uses it (SPEC S7's feature).
+    pub pitch_std: Option<f64>,
+}
+
+#[derive(Debug, Clone)]
+struct EnvWindow {
+    /// The last `window` ticks' (sin θx, sin θz, x, z).
+    ticks: VecDeque<[f64; 4]>,
+    travel: RollingPath,
+    held: KindEstimate,
+}
+
+/// Per-env K-kind classifier over a stored, named mixture.
+#[derive(Debug, Clone)]
+pub struct KindsEstimator {
+    stored: StoredKinds,
+    beyond: f64,
+    /// Path over a window below which it is stationary, metres.
+    min_travel: f64,
+    envs: Vec<EnvWindow>,
+    /// Full windows left out as stationary.
+    stationary: u64,
+}
+
+impl KindsEstimator {
+    /// The classifier of `cfg.kinds_model` for `online-window`, for `num_envs` envs; windows
+    /// shorter than `min_step_travel` metres per tick are stationary. The config is assumed
+    /// validated ([`common::Config::validate`]).
+    pub fn from_config(
+        cfg: &EstimatorConfig,
+        num_envs: usize,
+        min_step_travel: f64,
+    ) -> anyhow::Result<Self> {
+        let path = cfg
+            .kinds_model
+            .as_deref()
+            .ok_or_else(|| anyhow::anyhow!("estimator.kinds-model is not set"))?;
+        let stored = crate::kinds::read_stored(path)?
+            .into_iter()
+            .find(|s| s.window == cfg.online_window)
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "{}: no classifier for estimator.online-window {}",
+                    path.display(),
+                    cfg.online_window
+                )
+            })?;
+        Ok(Self::new(
+            stored,
+            num_envs,
+            cfg.unknown_beyond,
+            min_step_travel,
+        )?)
+    }
+
+    /// An estimator over `stored` (no slip feature: telemetry does not carry the wheel
+    /// command) for `num_envs` envs.
+    pub fn new(
+        stored: StoredKinds,
+        num_envs: usize,
+        beyond: f64,
+        min_step_travel: f64,
+    ) -> Result<Self> {
+        if num_envs == 0 {
+            return Err(EstimatorError::NoEnvs);
+        }
+        let w = stored.window;
+        let env = EnvWindow {
+            ticks: VecDeque::with_capacity(w),
+            travel: RollingPath::new(w)?,
+            held: KindEstimate::default(),
+        };
+        Ok(Self {
+            min_travel: min_step_travel * (w - 1) as f64,
+            beyond,
+            envs: vec![env; num_envs],
+            stationary: 0,
+            stored,
+        })
+    }
+
+    pub fn window(&self) -> usize {
+        self.stored.window
+    }
+
+    /// Full windows left out as stationary so far.
+    pub fn stationary(&self) -> u64 {
+        self.stationary
+    }
+
+    /// Forgets env `env`'s window and estimate (after a respawn).
+    pub fn reset_env(&mut self, env: usize) -> Result<()> {
+        let state = self.env_mut(env)?;
+        state.ticks.clear();
+        state.travel.clear();
+        state.held = KindEstimate::default();
+        Ok(())
+    }
+
+    /// Feeds env `env`'s sin θx, sin θz and X-Z position (metres) for this tick and returns
+    /// its estimate. A non-finite value is refused and not fed.
+    pub fn observe(
+        &mut self,
+        env: usize,
+        sin_pitch: f64,
+        sin_roll: f64,
+        at: [f64; 2],
+    ) -> Result<KindEstimate> {
+        let tick = [sin_pitch, sin_roll, at[0], at[1]];
+        if let Some(&value) = tick.iter().find(|v| !v.is_finite()) {
+            return Err(EstimatorError::NonFiniteObservation { env, value });
+        }
+        let w = self.stored.window;
+        let min_travel = self.min_travel;
+        let state = self.env_mut(env)?;
+        if state.ticks.len() == w {
+            state.ticks.pop_front();
+        }
+        state.ticks.push_back(tick);
+        let Some(path) = state.travel.push(at) else {
+            return Ok(state.held);
+        };
+        if path < min_travel {
+            self.stationary += 1;
+            return Ok(self.envs[env].held);
+        }
+        let x = self.features_of(env)?;
+        let model = &self.stored.model;
+        let estimate = if model.explains(&x, self.beyond) {
+            let (c, posterior) = model.posterior(&x);
+            KindEstimate {
+                kind: Some(self.stored.component_kinds[c]),
+                posterior,
+                pitch_std: None,
+            }
+        } else {
+            KindEstimate::default()
+        };
+        let estimate = KindEstimate {
+            pitch_std: self
+                .stored
+                .features
+                .iter()
+                .position(|f| *f == WindowFeature::PitchStd)
+                .map(|i| x[i]),
+            ..estimate
+        };
+        self.envs[env].held = estimate;
+        Ok(estimate)
+    }
+
+    /// The stored features of env `env`'s full window, by the offline code.
+    fn features_of(&self, env: usize) -> Result<Vec<f64>> {
+        let ticks = &self.envs[env].ticks;
+        let column = |i: usize| ticks.iter().map(|t| t[i]).collect::<Vec<f64>>();
+        let series = Series {
+            env: env as u32,
+            area: AreaKind::Flat,
+            first_tick: 0,
+            sin_pitch: column(0),
+            sin_roll: column(1),
+            xz: ticks.iter().map(|t| [t[2], t[3]]).collect(),
+            command: vec![0.0; ticks.len()],
+        };
+        // The gate was applied above; no slip feature, so the wheels are never read.
+        let wheels = Wheels {
+            radius: 0.0,
+            dt: 0.0,
+        };
+        let windows = features::window_features(
+            std::slice::from_ref(&series),
+            self.stored.window,
+            &self.stored.features,
+            0.0,
+            wheels,
+        )?;
+        Ok(windows.values)
+    }
+
+    fn env_mut(&mut self, env: usize) -> Result<&mut EnvWindow> {
+        let envs = self.envs.len();
+        self.envs
+            .get_mut(env)
+            .ok_or(EstimatorError::EnvOutOfRange { env, envs })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gmm::Gmm;
+    use crate::kinds::Classifier;
+
+    /// A one-feature (pitch std) classifier: component 0 near 0.01 is slope, 1 near 0.1
+    /// gravel, over windows of 4 ticks.
+    fn estimator(min_step_travel: f64) -> KindsEstimator {
+        let gmm = Gmm::new(vec![0.5, 0.5], vec![0.01, 0.1], vec![1e-4, 1e-4]).expect("gmm");
+        let stored = StoredKinds {
+            window: 4,
+            features: vec![WindowFeature::PitchStd],
+            component_kinds: vec![AreaKind::Slope, AreaKind::Gravel],
+            model: Classifier::OneFeature(gmm),
+        };
+        KindsEstimator::new(stored, 2, 0.0, min_step_travel).expect("estimator")
+    }
+
+    #[test]
+    fn a_full_window_is_named_by_its_component_kind() {
+        let mut e = estimator(0.0);
+        let pitches = [0.0, 0.2, 0.0, 0.2, 0.0];
+        let got: Vec<KindEstimate> = pitches
+            .iter()
+            .enumerate()
+            .map(|(t, &p)| e.observe(0, p, 0.0, [t as f64, 0.0]).expect("observe"))
+            .collect();
+        assert!(
+            got[..3].iter().all(|g| g.kind.is_none()),
+            "no full window yet"
+        );
+        // (0, 0.2, 0, 0.2): mean 0.1, sample variance 4 · 0.01 / 3, std 0.1155: gravel.
+        assert_eq!(got[3].kind, Some(AreaKind::Gravel));
+        let std = got[3].pitch_std.expect("pitch std");
+        assert!((std - (0.04f64 / 3.0).sqrt()).abs() < 1e-12, "{std}");
+        assert!(got[3].posterior > 0.99);
+        // The other env has its own window.
+        assert_eq!(
+            e.observe(1, 0.0, 0.0, [0.0, 0.0]).expect("observe").kind,
+            None
+        );
+        for t in 0..4 {
+            e.observe(0, 0.01 * f64::from(t % 2), 0.0, [f64::from(t), 0.0])
+                .expect("observe");
+        }
+        assert_eq!(e.envs[0].held.kind, Some(AreaKind::Slope));
+        e.reset_env(0).expect("reset");
+        assert_eq!(e.envs[0].held.kind, None);
+    }
+
+    #[test]
+    fn a_stationary_window_keeps_the_last_kind_and_bad_values_are_refused() {
+        let mut e = estimator(0.1);
+        for (t, p) in [0.0, 0.2, 0.0, 0.2].into_iter().enumerate() {
+            e.observe(0, p, 0.0, [0.5 * t as f64, 0.0])
+                .expect("observe");
+        }
+        assert_eq!(e.envs[0].held.kind, Some(AreaKind::Gravel));
+        // Standing still with a smooth pitch: a moving window would read slope.
+        // The first two windows still span the drive; the next four see no movement.
+        for _ in 0..6 {
+            let g = e.observe(0, 0.0, 0.0, [1.5, 0.0]).expect("observe");
+            assert_eq!(g.kind, Some(AreaKind::Gravel));
+        }
+        assert_eq!(e.stationary(), 4);
+        assert!(e.observe(0, f64::NAN, 0.0, [0.0, 0.0]).is_err());
+        assert!(e.observe(2, 0.0, 0.0, [0.0, 0.0]).is_err());
+    }
+}
