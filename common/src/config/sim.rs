@@ -198,7 +198,12 @@ impl SimConfig {
 
     /// `n` envs, all in `area`.
     pub fn only_in(&mut self, area: AreaKind, n: usize) {
-        let count = |a: AreaKind| if a == area { n } else { 0 };
+        self.spread(&[area], n);
+    }
+
+    /// `n` envs in each of `areas`, none elsewhere.
+    pub fn spread(&mut self, areas: &[AreaKind], n: usize) {
+        let count = |a: AreaKind| if areas.contains(&a) { n } else { 0 };
         self.flat_envs = count(AreaKind::Flat);
         self.rough_envs = count(AreaKind::Rough);
         self.slope_envs = count(AreaKind::Slope);

@@ -195,6 +195,14 @@ fn one() -> f64 {
 }
 
 impl TerrainConfig {
+    /// The terrain kinds the world has an area of, in code order (the paper's: flat, rough).
+    pub fn kinds(&self) -> Vec<AreaKind> {
+        AreaKind::KINDS
+            .into_iter()
+            .filter(|k| self.area(*k).is_some())
+            .collect()
+    }
+
     /// The rectangle of the `kind` area, if the world has one.
     pub fn area(&self, kind: AreaKind) -> Option<Rect> {
         self.areas.iter().find(|a| a.kind == kind).map(Area::rect)

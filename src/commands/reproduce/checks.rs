@@ -1,10 +1,11 @@
 //! The shape Table 1 should have (SPEC S8), checked leg by leg on one seed's cells: each
 //! specialist at least as good as the general model on its terrain, switching at least as
 //! good as the best single model in every area and better than the general model on the
-//! mixed course.
+//! mixed course. The claims follow the cells: FTM and RTM on the paper's terrains, one
+//! specialist per kind on more.
 
-use super::evaluation::EVAL_AREAS;
 use super::legs::{Cell, Evaluated};
+use super::selection::kind_of;
 use super::statistics::Paired;
 use common::config::AreaKind;
 
@@ -67,17 +68,30 @@ pub(super) struct Check {
 pub(super) fn checks(cells: &[Evaluated], decision_dt: f64, margins: (f64, f64)) -> Vec<Check> {
     let find =
         |model: &str, area: AreaKind| cells.iter().find(|c| c.model == model && c.area == area);
+    // Models and areas in the cells' order: the general model, then the specialists.
+    let mut specialists: Vec<(&str, AreaKind)> = Vec::new();
+    let mut areas: Vec<AreaKind> = Vec::new();
+    for c in cells {
+        if let Some(kind) = kind_of(&c.model)
+            && !specialists.iter().any(|(m, _)| *m == c.model)
+        {
+            specialists.push((&c.model, kind));
+        }
+        if !areas.contains(&c.area) {
+            areas.push(c.area);
+        }
+    }
     let best_single = |area: AreaKind| {
-        ["general", "FTM", "RTM"]
-            .into_iter()
+        std::iter::once("general")
+            .chain(specialists.iter().map(|(m, _)| *m))
             .filter_map(|m| find(m, area).map(|c| (m, Cell::of(&c.legs, decision_dt))))
             .max_by(|(_, a), (_, b)| rank(a).total_cmp(&rank(b)))
     };
-    let mut claims = vec![
-        ("FTM", "general", AreaKind::Flat, false, false),
-        ("RTM", "general", AreaKind::Rough, false, false),
-    ];
-    for area in EVAL_AREAS {
+    let mut claims: Vec<(&str, &str, AreaKind, bool, bool)> = specialists
+        .iter()
+        .map(|&(m, kind)| (m, "general", kind, false, false))
+        .collect();
+    for &area in &areas {
         if let Some((m, _)) = best_single(area) {
             claims.push(("switching", m, area, false, true));
         }
@@ -146,7 +160,7 @@ mod tests {
         };
         let base = legs(100, &|i| (i % 10 != 0).then_some(30 + (i % 7) as u32));
         let mut cells = Vec::new();
-        for area in EVAL_AREAS {
+        for area in [AreaKind::Flat, AreaKind::Rough, AreaKind::Mixed] {
             for model in ["general", "FTM", "RTM", "switching"] {
                 cells.push(eval(model, area, base.clone()));
             }
@@ -201,6 +215,46 @@ mod tests {
         assert!(
             row_of(&checks(&cells), "switching better than general on mixed")
                 .ends_with("| +10.0 ± 6.0 | +0.00 ± 0.00 | yes |")
+        );
+    }
+
+    #[test]
+    fn every_kind_s_specialist_and_area_gets_its_claims() {
+        let legs: Legs = vec![vec![vec![Some(30); 20]]];
+        let mut cells = Vec::new();
+        for model in ["general", "FTM", "RTM", "STM", "GTM", "switching"] {
+            for area in [
+                AreaKind::Flat,
+                AreaKind::Rough,
+                AreaKind::Slope,
+                AreaKind::Gravel,
+                AreaKind::Mixed,
+            ] {
+                cells.push(Evaluated {
+                    model: model.into(),
+                    area,
+                    legs: legs.clone(),
+                });
+            }
+        }
+        let keys: Vec<String> = checks(&cells, 0.1, (1.0, 0.05))
+            .into_iter()
+            .map(|c| c.key)
+            .collect();
+        assert_eq!(
+            keys,
+            [
+                "FTM ≥ general on flat",
+                "RTM ≥ general on rough",
+                "STM ≥ general on slope",
+                "GTM ≥ general on gravel",
+                "switching ≥ the best single model on flat",
+                "switching ≥ the best single model on rough",
+                "switching ≥ the best single model on slope",
+                "switching ≥ the best single model on gravel",
+                "switching ≥ the best single model on mixed",
+                "switching better than general on mixed",
+            ]
         );
     }
 

@@ -11,8 +11,15 @@ use common::run_dir::TELEMETRY_CSV;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// Where stage f evaluates every model: SPEC S8's two areas, then the mixed course.
-pub(super) const EVAL_AREAS: [AreaKind; 3] = [AreaKind::Flat, AreaKind::Rough, AreaKind::Mixed];
+/// Where stage f evaluates every model: each terrain kind's area (SPEC S8's flat and rough
+/// on the paper's world), then the mixed course.
+pub(super) fn eval_areas(kinds: &[AreaKind]) -> Vec<AreaKind> {
+    kinds
+        .iter()
+        .copied()
+        .chain(std::iter::once(AreaKind::Mixed))
+        .collect()
+}
 
 /// Validation courses' seeds start this far from the run's, so stage e's choice of
 /// specialist never drives stage f's courses.
@@ -125,9 +132,9 @@ impl Pipeline {
         })
     }
 
-    /// SPEC S8's switching policy in `area`: FTM and RTM served frozen, each env acting with
-    /// the one its live terrain estimate points to (mean actions), through the full runtime
-    /// with the estimator.
+    /// SPEC S8's switching policy in `area`: the specialists (FTM and RTM on the paper's
+    /// terrains) served frozen, each env acting with the one its live terrain estimate points
+    /// to (mean actions), through the full runtime with the estimator.
     pub(super) fn switching(
         &self,
         area: AreaKind,
@@ -146,11 +153,10 @@ impl Pipeline {
             cfg.run.total_steps = steps;
             cfg.sim.acting = Acting::Switch;
             cfg.sim.mean_actions = true;
-            // SPEC S7-S8: the estimator classifies with stage d's mixture, fitted on both
-            // terrains, and is not refitted: a fit on one area's windows alone would split
-            // that terrain into two classes and hand half of it to the other specialist.
-            cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
-            cfg.estimator.refit_every = 0;
+            // SPEC S7-S8: the estimator classifies with stage d's mixture, fitted on every
+            // terrain, and is not refitted: a fit on one area's windows alone would split
+            // that terrain into two classes and hand half of it to another specialist.
+            self.estimate_with_stage_d(&mut cfg);
             cfg.validate()?;
             self.execute(&cfg, name)?;
             Ok(eval.join(name).join(TELEMETRY_CSV))

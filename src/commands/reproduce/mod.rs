@@ -3,16 +3,21 @@
 //! Stages, each in its own directory under `--out`, each skipped when its `stage.json` says
 //! it finished (an unfinished one is redone from scratch):
 //! a. `a-flat`: the initial flat model, from scratch (SPEC S6);
-//! b. `b-general`: the general model on flat + rough ground, warm-started from (a);
-//! c. `c-collect`: telemetry of the general model (mean actions), both areas (SPEC S7);
-//! d. `d-analysis`: Table 3 and Figs. 5–8 (`estimator-proc analyze`);
-//! e. `e-specialists`: FTM and RTM fine-tuned from (b) at once, each on the transitions the
-//!    estimator (not the true area) assigns to its terrain, acting by switching (SPEC S8);
-//!    `e-select` (with `reproduce.specialist-candidates`): each specialist is the best on its
-//!    own terrain's validation courses of the general model and stage e's milestones;
-//! f. `f-eval`: success rate and reach time of general, FTM and RTM in each area (Table 1),
-//!    and of switching between FTM and RTM on stage d's terrain mixture, every model on the
-//!    same seeded courses (`EpisodeStart::Course`);
+//! b. `b-general`: the general model on every terrain kind's area (the paper's flat + rough),
+//!    warm-started from (a);
+//! c. `c-collect`: telemetry of the general model (mean actions), every area (SPEC S7);
+//! d. `d-analysis`: Table 3 and Figs. 5-8 (`estimator-proc analyze`); with more kinds than
+//!    the paper's two, the K-kind classifier named on this recording (`estimator-proc kinds`);
+//! e. `e-specialists`: one specialist per kind (FTM and RTM on the paper's terrains)
+//!    fine-tuned from (b) at once, each on the transitions the estimator (not the true area)
+//!    assigns to its terrain, acting by switching (SPEC S8); with K kinds the estimator is
+//!    stage d's classifier. `e-select` (with `reproduce.specialist-candidates`): each
+//!    specialist is the best on its own terrain's validation courses of the general model
+//!    and stage e's milestones;
+//! f. `f-eval`: success rate and reach time of the general model and every specialist in
+//!    each area (Table 1), and of switching between the specialists with stage d's
+//!    classifier, every model on the same seeded courses (`EpisodeStart::Course`), in every
+//!    area and on the mixed course;
 //! g. `report.md`: every table beside the paper's numbers, figures, learning curves, and the
 //!    paper's claims about Table 1 checked leg by leg on the legs both models drove.
 //!
@@ -33,7 +38,7 @@ mod statistics;
 use super::UserError;
 use anyhow::Context;
 use common::Config;
-use common::config::PolicySlot;
+use common::config::{AreaKind, PolicySlot, WindowFeature};
 use legs::Evaluated;
 use pipeline::Pipeline;
 use std::path::{Path, PathBuf};
@@ -69,6 +74,15 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
     if base.run.learners != [PolicySlot::General] || base.run.init_from.is_some() {
         return Err(UserError(
             "reproduce sets run.learners and run.init-from per stage: leave them unset".into(),
+        )
+        .into());
+    }
+    let paper_terrains = base.sim.terrain.kinds() == [AreaKind::Flat, AreaKind::Rough];
+    if !paper_terrains && base.estimator.features.contains(&WindowFeature::Slip) {
+        return Err(UserError(
+            "beyond the paper's flat and rough areas, switching names terrain kinds online, \
+             where `slip` is not available: drop it from estimator.features"
+                .into(),
         )
         .into());
     }

@@ -1,12 +1,12 @@
 //! The stages in their order (a–g, see the command's docs), each resumed or run afresh.
 
-use super::evaluation::EVAL_AREAS;
+use super::evaluation::eval_areas;
 use super::legs::Evaluated;
 use super::report::report;
-use super::selection::specialists;
+use super::selection::{roles, specialists};
 use crate::runtime;
 use anyhow::Context;
-use common::config::{Acting, PolicySlot};
+use common::config::{Acting, AreaKind, PolicySlot};
 use common::{Config, run_dir};
 use std::path::PathBuf;
 use std::process::Command;
@@ -19,15 +19,38 @@ pub(super) struct Pipeline {
 }
 
 impl Pipeline {
-    /// The base config with `flat` + `rough` envs.
-    fn envs(&self, flat: usize, rough: usize) -> Config {
+    /// The terrain kinds the world has an area of: SPEC S8's flat and rough by default.
+    pub(super) fn kinds(&self) -> Vec<AreaKind> {
+        self.base.sim.terrain.kinds()
+    }
+
+    /// Whether the world is the paper's two terrains, where stage d is SPEC S7's analysis;
+    /// with more kinds it is `estimator-proc kinds`, whose named classifier estimates online.
+    pub(super) fn paper_terrains(&self) -> bool {
+        self.kinds() == [AreaKind::Flat, AreaKind::Rough]
+    }
+
+    /// The base config with `n` envs on each terrain kind's area.
+    fn envs(&self, n: usize) -> Config {
         let mut c = self.base.clone();
-        c.sim.flat_envs = flat;
-        c.sim.rough_envs = rough;
-        c.sim.mixed_envs = 0;
+        c.sim.spread(&self.kinds(), n);
         c
     }
+
+    /// `cfg` estimating terrain online with stage d's classifier: with more than the paper's
+    /// two terrains, the named K-kind classifier, which is never refitted.
+    pub(super) fn estimate_with_stage_d(&self, cfg: &mut Config) {
+        if self.paper_terrains() {
+            cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
+        } else {
+            cfg.estimator.kinds_model = Some(self.stage_dir("d-analysis").join(KINDS_JSON));
+        }
+        cfg.estimator.refit_every = 0;
+    }
 }
+
+/// Stage d's named classifier with more than two terrain kinds.
+const KINDS_JSON: &str = "kinds.json";
 
 /// Where stage f keeps its cells.
 const CELLS_JSON: &str = "cells.json";
@@ -57,11 +80,12 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let r = &base.reproduce;
     std::fs::write(out.join(run_dir::CONFIG_TOML), base.to_toml())?;
 
-    let mut a = p.envs(r.flat_envs, 0);
+    let mut a = base.clone();
+    a.sim.only_in(AreaKind::Flat, r.flat_envs);
     a.run.total_steps = r.flat_steps;
     p.train("a-flat", a)?;
 
-    let mut b = p.envs(r.envs_per_area, r.envs_per_area);
+    let mut b = p.envs(r.envs_per_area);
     b.run.total_steps = r.general_steps;
     b.run.init_from = Some(p.checkpoint("a-flat", PolicySlot::General)?);
     p.train("b-general", b)?;
@@ -74,16 +98,15 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let traces = p.stage_dir("c-collect").join("traces.csv");
     if !p.done("c-collect") {
         std::fs::create_dir_all(p.fresh("c-collect")?)?;
-        p.say("c-collect: the general model in both areas (SPEC S7)");
+        p.say("c-collect: the general model in every area (SPEC S7)");
         let n = r.collect_envs.unwrap_or(r.envs_per_area);
-        p.drive(&p.envs(n, n), &general, r.collect_steps, &traces)?;
+        p.drive(&p.envs(n), &general, r.collect_steps, &traces)?;
         p.finish("c-collect", serde_json::json!({ "traces": traces }))?;
     }
 
     let analysis = p.stage_dir("d-analysis");
     if !p.done("d-analysis") {
         p.fresh("d-analysis")?;
-        p.say("d-analysis: Table 3, Figs. 5-8");
         let windows = base
             .estimator
             .windows
@@ -91,23 +114,40 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
             .map(std::string::ToString::to_string)
             .collect::<Vec<_>>()
             .join(",");
-        let status = Command::new(runtime::locate("estimator-proc")?)
-            .arg("analyze")
-            .arg(&traces)
-            .args(["--windows", &windows, "--out"])
+        let mut cmd = Command::new(runtime::locate("estimator-proc")?);
+        if p.paper_terrains() {
+            p.say("d-analysis: Table 3, Figs. 5-8");
+            cmd.arg("analyze")
+                .arg(&traces)
+                .args(["--windows", &windows]);
+        } else {
+            p.say("d-analysis: the terrain kinds' classifier, named on the recording");
+            cmd.arg("kinds").arg(&traces);
+        }
+        let status = cmd
+            .arg("--out")
             .arg(&analysis)
             .arg("--config")
             .arg(out.join(run_dir::CONFIG_TOML))
             .status()?;
-        anyhow::ensure!(status.success(), "estimator-proc analyze failed");
+        anyhow::ensure!(
+            status.success(),
+            "estimator-proc on {} failed",
+            traces.display()
+        );
         p.finish("d-analysis", serde_json::json!({ "windows": windows }))?;
     }
 
-    let mut e = p.envs(r.envs_per_area, r.envs_per_area);
+    let roles = roles(&p.kinds());
+    let mut e = p.envs(r.envs_per_area);
     e.run.total_steps = r.finetune_steps;
-    e.run.learners = vec![PolicySlot::Flat, PolicySlot::Rough];
+    e.run.learners = roles.iter().map(|r| r.slot).collect();
     e.run.init_from = Some(p.checkpoint("b-general", PolicySlot::General)?);
     e.sim.acting = Acting::Switch;
+    if !p.paper_terrains() {
+        // SPEC S8 fits the estimator online; K kinds need the classifier named in stage d.
+        p.estimate_with_stage_d(&mut e);
+    }
     if let Some(scale) = r.finetune_roughness_scale {
         e.sim.terrain.roughness_scale = scale;
     }
@@ -119,13 +159,11 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     }
     p.train("e-specialists", e)?;
     let selections = specialists(p)?;
-    let models = [
-        ("general", general),
-        ("FTM", policies.join("ftm.policy")),
-        ("RTM", policies.join("rtm.policy")),
-    ];
-    for ((_, weights), s) in models[1..].iter().zip(&selections) {
-        p.export(s.checkpoint(), weights)?;
+    let mut models = vec![("general", general)];
+    for (role, s) in roles.iter().zip(&selections) {
+        let weights = policies.join(format!("{}.policy", role.model.to_lowercase()));
+        p.export(s.checkpoint(), &weights)?;
+        models.push((role.model, weights));
     }
 
     let eval = p.stage_dir("f-eval");
@@ -135,16 +173,18 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     } else {
         std::fs::create_dir_all(p.fresh("f-eval")?)?;
         let mut cells = Vec::new();
+        let areas = eval_areas(&p.kinds());
         for (name, weights) in &models {
-            for area in EVAL_AREAS {
+            for &area in &areas {
                 cells.push(p.evaluate_policy(name, weights, area, p.test_courses(), &eval)?);
             }
         }
-        let frozen = [PolicySlot::Flat, PolicySlot::Rough]
-            .into_iter()
+        let frozen = roles
+            .iter()
+            .map(|r| r.slot)
             .zip(selections.iter().map(|s| s.checkpoint().to_path_buf()))
             .collect();
-        for area in EVAL_AREAS {
+        for &area in &areas {
             cells.push(p.switching(area, &frozen, &eval)?);
         }
         std::fs::write(&cells_path, serde_json::to_string(&cells)?)?;
@@ -157,4 +197,55 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
     println!("report: {}", path.display());
     Ok(cells)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use common::config::Area;
+
+    #[test]
+    fn switching_estimates_with_stage_d_s_classifier_for_the_world_s_kinds() {
+        let mut p = Pipeline {
+            base: Config::default(),
+            out: PathBuf::from("/out"),
+            quiet: true,
+        };
+        let mut cfg = Config::default();
+        assert!(p.paper_terrains());
+        p.estimate_with_stage_d(&mut cfg);
+        assert_eq!(
+            (
+                cfg.estimator.model,
+                cfg.estimator.kinds_model,
+                cfg.estimator.refit_every
+            ),
+            (Some(PathBuf::from("/out/d-analysis/results.json")), None, 0)
+        );
+        p.base.sim.terrain.areas.push(Area {
+            kind: AreaKind::Slope,
+            x: [-9.0, -7.0],
+            z: [0.0, 2.0],
+        });
+        assert_eq!(
+            p.kinds(),
+            [AreaKind::Flat, AreaKind::Rough, AreaKind::Slope]
+        );
+        let mut cfg = Config::default();
+        p.estimate_with_stage_d(&mut cfg);
+        assert_eq!(
+            (cfg.estimator.model, cfg.estimator.kinds_model),
+            (None, Some(PathBuf::from("/out/d-analysis/kinds.json")))
+        );
+        let b = p.envs(3);
+        assert_eq!(
+            (
+                b.sim.flat_envs,
+                b.sim.slope_envs,
+                b.sim.gravel_envs,
+                b.sim.mixed_envs
+            ),
+            (3, 3, 0, 0)
+        );
+    }
 }

@@ -4,7 +4,7 @@
 use super::checks::{Check, SHAPE_CHECKS_HEADING, checks, shape_checks};
 use super::legs::{Cell, Evaluated};
 use super::pipeline::Pipeline;
-use super::selection::{GENERAL, Selection, chosen_before};
+use super::selection::{GENERAL, Selection, chosen_before, roles};
 use super::statistics::mean_ci;
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};
@@ -106,18 +106,24 @@ fn claim_over_seeds(per_seed: &[(u64, Vec<Check>)], key: &str) -> [String; 3] {
     ]
 }
 
-/// Table 3 over seeds: each window's accuracy %, mean ± CI.
+/// Table 3 over seeds: each window's accuracy %, mean ± CI; with more than the paper's two
+/// terrains, the K-kind classifier's macro accuracy.
 fn table_3(runs: &Runs) -> anyhow::Result<std::collections::BTreeMap<u64, String>> {
     let mut by_window: std::collections::BTreeMap<u64, Vec<f64>> =
         std::collections::BTreeMap::default();
     for (p, _) in runs {
-        let path = p.stage_dir("d-analysis").join("results.json");
+        let (file, field) = if p.paper_terrains() {
+            ("results.json", "accuracy")
+        } else {
+            ("kinds.json", "macro_accuracy")
+        };
+        let path = p.stage_dir("d-analysis").join(file);
         let json: serde_json::Value = serde_json::from_str(
             &std::fs::read_to_string(&path)
                 .with_context(|| format!("cannot read {}", path.display()))?,
         )?;
         for w in json["windows"].as_array().into_iter().flatten() {
-            if let (Some(win), Some(acc)) = (w["window"].as_u64(), w["accuracy"].as_f64()) {
+            if let (Some(win), Some(acc)) = (w["window"].as_u64(), w[field].as_f64()) {
                 by_window.entry(win).or_default().push(100.0 * acc);
             }
         }
@@ -311,9 +317,14 @@ pub(super) fn report(
     md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
     md += &selection_table(selections, r.validation_episodes);
     let analysis = p.stage_dir("d-analysis");
-    let table3 = std::fs::read_to_string(analysis.join("results.md"))
-        .with_context(|| format!("cannot read {}", analysis.join("results.md").display()))?;
-    md += "\n## Table 3 and Figs. 5-8 (stage d)\n\n";
+    let (file, heading) = if p.paper_terrains() {
+        ("results.md", "Table 3 and Figs. 5-8")
+    } else {
+        ("kinds.md", "Terrain kinds told apart")
+    };
+    let table3 = std::fs::read_to_string(analysis.join(file))
+        .with_context(|| format!("cannot read {}", analysis.join(file).display()))?;
+    md += &format!("\n## {heading} (stage d)\n\n");
     // Its own headings one level down, its figure links relative to this report.
     let table3 = table3
         .replace("](", "](d-analysis/")
@@ -322,12 +333,16 @@ pub(super) fn report(
         t.split_once('\n').map_or(t, |(_, rest)| rest)
     });
     md += "\n## Learning curves\n\n";
+    let specialists = roles(&p.kinds())
+        .into_iter()
+        .map(|r| ("e-specialists", r.slot));
     for (stage, slot) in [
         ("a-flat", PolicySlot::General),
         ("b-general", PolicySlot::General),
-        ("e-specialists", PolicySlot::Flat),
-        ("e-specialists", PolicySlot::Rough),
-    ] {
+    ]
+    .into_iter()
+    .chain(specialists)
+    {
         let png = learner_dir(&p.stage_dir(stage), slot).join(run_dir::CURVES_PNG);
         if png.is_file() {
             let rel = png.strip_prefix(&p.out).unwrap_or(&png);
@@ -336,10 +351,12 @@ pub(super) fn report(
     }
     md += "\n## Maps\n\nEach robot's last episodes, its path coloured by the estimator's class: the general model's training (stage b), then switching on each evaluation ground's first courses (stage f).\n\n";
     let maps = std::iter::once(p.stage_dir("b-general")).chain(
-        super::evaluation::EVAL_AREAS.iter().map(|a| {
-            p.stage_dir("f-eval")
-                .join(format!("switching-{}-0", a.name()))
-        }),
+        super::evaluation::eval_areas(&p.kinds())
+            .into_iter()
+            .map(|a| {
+                p.stage_dir("f-eval")
+                    .join(format!("switching-{}-0", a.name()))
+            }),
     );
     for dir in maps {
         let png = dir.join(run_dir::MAP_PNG);
@@ -353,7 +370,6 @@ pub(super) fn report(
 
 #[cfg(test)]
 mod tests {
-    use super::super::evaluation::EVAL_AREAS;
     use super::super::legs::Legs;
     use super::super::row_of;
     use super::*;
@@ -376,7 +392,7 @@ mod tests {
             let mut base = Config::default();
             base.run.seed = seed;
             let mut cells = Vec::new();
-            for area in EVAL_AREAS {
+            for area in [AreaKind::Flat, AreaKind::Rough, AreaKind::Mixed] {
                 for (model, ticks) in [("general", 40), ("FTM", 40), ("RTM", 35), ("switching", 35)]
                 {
                     let ticks = if model == "FTM" && area == AreaKind::Rough {

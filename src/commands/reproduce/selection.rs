@@ -57,29 +57,68 @@ pub(super) fn chosen_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Selection
     })
 }
 
-/// FTM and RTM (SPEC S8): stage e's last checkpoints, or with `specialist-candidates` the
-/// ones stage `e-select` validates best ([`Pipeline::select`]), chosen once and kept.
+/// A terrain kind's specialist: its name in the tables and the slot that fine-tunes it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(super) struct Role {
+    pub(super) model: &'static str,
+    pub(super) slot: PolicySlot,
+    pub(super) kind: AreaKind,
+}
+
+/// The specialist of each of `kinds`: SPEC S8's flat- and rough-terrain models FTM and RTM,
+/// and beyond the paper STM (slope) and GTM (gravel).
+pub(super) fn roles(kinds: &[AreaKind]) -> Vec<Role> {
+    kinds
+        .iter()
+        .filter_map(|&kind| {
+            let model = match kind {
+                AreaKind::Flat => "FTM",
+                AreaKind::Rough => "RTM",
+                AreaKind::Slope => "STM",
+                AreaKind::Gravel => "GTM",
+                AreaKind::Mixed => return None,
+            };
+            let slot = PolicySlot::for_class(kind.code())?;
+            Some(Role { model, slot, kind })
+        })
+        .collect()
+}
+
+/// The terrain kind the specialist named `model` is for, if it is one ([`roles`]).
+pub(super) fn kind_of(model: &str) -> Option<AreaKind> {
+    roles(&AreaKind::KINDS)
+        .into_iter()
+        .find(|r| r.model == model)
+        .map(|r| r.kind)
+}
+
+/// One specialist per terrain kind of the world (SPEC S8's FTM and RTM on the paper's):
+/// stage e's last checkpoints, or with `specialist-candidates` the ones stage `e-select`
+/// validates best ([`Pipeline::select`]), chosen once and kept.
 pub(super) fn specialists(p: &Pipeline) -> anyhow::Result<Vec<Selection>> {
-    let roles = [
-        ("FTM", PolicySlot::Flat, AreaKind::Flat),
-        ("RTM", PolicySlot::Rough, AreaKind::Rough),
-    ];
+    let roles = roles(&p.kinds());
     if p.base.reproduce.specialist_candidates == 0 {
         return roles
             .into_iter()
-            .map(|(model, slot, area)| {
-                let checkpoint = p.checkpoint("e-specialists", slot)?;
-                Ok(Selection {
-                    model: model.into(),
-                    area,
-                    candidates: vec![Candidate {
-                        label: "last checkpoint".into(),
-                        checkpoint,
-                        cell: None,
-                    }],
-                    chosen: 0,
-                })
-            })
+            .map(
+                |Role {
+                     model,
+                     slot,
+                     kind: area,
+                 }| {
+                    let checkpoint = p.checkpoint("e-specialists", slot)?;
+                    Ok(Selection {
+                        model: model.into(),
+                        area,
+                        candidates: vec![Candidate {
+                            label: "last checkpoint".into(),
+                            checkpoint,
+                            cell: None,
+                        }],
+                        chosen: 0,
+                    })
+                },
+            )
             .collect();
     }
     if let Some(chosen) = chosen_before(p)? {
@@ -91,7 +130,7 @@ pub(super) fn specialists(p: &Pipeline) -> anyhow::Result<Vec<Selection>> {
     let general = p.checkpoint("b-general", PolicySlot::General)?;
     let chosen = roles
         .into_iter()
-        .map(|(model, slot, area)| p.select(model, slot, area, &general))
+        .map(|r| p.select(r.model, r.slot, r.kind, &general))
         .collect::<anyhow::Result<Vec<_>>>()?;
     std::fs::write(&path, serde_json::to_string_pretty(&chosen)?)
         .with_context(|| format!("cannot write {}", path.display()))?;
@@ -238,5 +277,16 @@ mod tests {
         base.reproduce.specialist_candidates = 100;
         base.reproduce.finetune_steps = 4096;
         assert_eq!(every(&base), 1);
+    }
+
+    #[test]
+    fn every_kind_has_a_specialist_named_after_it() {
+        let all = roles(&AreaKind::KINDS);
+        let names: Vec<&str> = all.iter().map(|r| r.model).collect();
+        assert_eq!(names, ["FTM", "RTM", "STM", "GTM"]);
+        assert!(all.iter().all(|r| r.slot.kind() == Some(r.kind)));
+        assert_eq!(kind_of("STM"), Some(AreaKind::Slope));
+        assert_eq!(kind_of("general"), None);
+        assert!(roles(&[AreaKind::Mixed]).is_empty());
     }
 }
