@@ -210,15 +210,22 @@ pub fn draw_distribution(path: &Path, window: usize, flat: &[f64], rough: &[f64]
                     .map(|(i, &f)| Rectangle::new(bar(i, f), color.stroke_width(1))),
             )?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FONT, 18))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .draw()?;
+        draw_legend(&mut chart)?;
         Ok(())
     })
+}
+
+/// The series' legend, upper right, as every figure here draws it.
+fn draw_legend<'a, DB: DrawingBackend + 'a, CT: CoordTranslate>(
+    chart: &mut ChartContext<'a, DB, CT>,
+) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    chart
+        .configure_series_labels()
+        .position(SeriesLabelPosition::UpperRight)
+        .label_font((FONT, 18))
+        .background_style(WHITE.mix(0.9))
+        .border_style(BLACK)
+        .draw()
 }
 
 /// Paper Fig. 8: one confusion heatmap per result, side by side. Rows: true area; columns:

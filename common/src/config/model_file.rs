@@ -5,6 +5,8 @@
 use super::range::invalid;
 use super::{AreaKind, ConfigError, EstimatorConfig, MixtureFeature, WindowFeature};
 use serde::Deserialize;
+use serde::de::DeserializeOwned;
+use std::path::Path;
 
 /// A terrain mixture fitted offline, as [`EstimatorConfig::model`] holds it: components by
 /// ascending mean (0 = flat), over `feature` (files written before it existed: `std`).
@@ -21,31 +23,17 @@ pub struct OfflineMixture {
 impl EstimatorConfig {
     /// The fit of [`model`](Self::model) for `online-window`; `None` without a model.
     pub fn offline_mixture(&self) -> Result<Option<OfflineMixture>, ConfigError> {
-        #[derive(Deserialize)]
-        struct Analysis {
-            windows: Vec<OfflineMixture>,
-        }
         let Some(path) = &self.model else {
             return Ok(None);
         };
         let bad = |reason: String| invalid("estimator.model", path, reason);
-        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-        let analysis: Analysis = serde_json::from_str(&text).map_err(|e| {
-            bad(format!(
-                "not the results.json of `estimator-proc analyze`: {e}"
-            ))
-        })?;
-        let found: Vec<usize> = analysis.windows.iter().map(|m| m.window).collect();
-        let m = analysis
-            .windows
-            .into_iter()
-            .find(|m| m.window == self.online_window)
-            .ok_or_else(|| {
-                bad(format!(
-                    "holds fits for windows {found:?}, none for estimator.online-window {}",
-                    self.online_window
-                ))
-            })?;
+        let m: OfflineMixture = self.online_entry(
+            path,
+            "estimator.model",
+            "the results.json of `estimator-proc analyze`",
+            "fits",
+            |m: &OfflineMixture| m.window,
+        )?;
         if m.feature != self.feature {
             return Err(bad(format!(
                 "its fit is over `{}`, but estimator.feature is `{}`",
@@ -84,28 +72,17 @@ impl EstimatorConfig {
     /// The classifier of [`kinds_model`](Self::kinds_model) for `online-window`; `None`
     /// without one.
     pub fn offline_kinds(&self) -> Result<Option<OfflineKinds>, ConfigError> {
-        #[derive(Deserialize)]
-        struct Report {
-            windows: Vec<OfflineKinds>,
-        }
         let Some(path) = &self.kinds_model else {
             return Ok(None);
         };
         let bad = |reason: String| invalid("estimator.kinds-model", path, reason);
-        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
-        let report: Report = serde_json::from_str(&text)
-            .map_err(|e| bad(format!("not the kinds.json of `estimator-proc kinds`: {e}")))?;
-        let found: Vec<usize> = report.windows.iter().map(|m| m.window).collect();
-        let m = report
-            .windows
-            .into_iter()
-            .find(|m| m.window == self.online_window)
-            .ok_or_else(|| {
-                bad(format!(
-                    "holds classifiers for windows {found:?}, none for estimator.online-window {}",
-                    self.online_window
-                ))
-            })?;
+        let m: OfflineKinds = self.online_entry(
+            path,
+            "estimator.kinds-model",
+            "the kinds.json of `estimator-proc kinds`",
+            "classifiers",
+            |m: &OfflineKinds| m.window,
+        )?;
         if m.features.contains(&WindowFeature::Slip) {
             return Err(bad(
                 "its classifier uses `slip`, which needs each tick's wheel command: telemetry \
@@ -123,6 +100,40 @@ impl EstimatorConfig {
             return Err(bad("its classifier has no component".into()));
         }
         Ok(Some(m))
+    }
+}
+
+impl EstimatorConfig {
+    /// The entry for `online-window` in the `windows` list of the JSON file at `path`
+    /// (`field` names the setting in errors; `file` what the file should be; `entries` what
+    /// it lists).
+    fn online_entry<T: DeserializeOwned>(
+        &self,
+        path: &Path,
+        field: &'static str,
+        file: &str,
+        entries: &str,
+        window_of: fn(&T) -> usize,
+    ) -> Result<T, ConfigError> {
+        #[derive(Deserialize)]
+        #[serde(bound = "T: DeserializeOwned")]
+        struct Windows<T> {
+            windows: Vec<T>,
+        }
+        let bad = |reason: String| invalid(field, path, reason);
+        let text = std::fs::read_to_string(path).map_err(|e| bad(e.to_string()))?;
+        let list: Windows<T> =
+            serde_json::from_str(&text).map_err(|e| bad(format!("not {file}: {e}")))?;
+        let found: Vec<usize> = list.windows.iter().map(window_of).collect();
+        list.windows
+            .into_iter()
+            .find(|m| window_of(m) == self.online_window)
+            .ok_or_else(|| {
+                bad(format!(
+                    "holds {entries} for windows {found:?}, none for estimator.online-window {}",
+                    self.online_window
+                ))
+            })
     }
 }
 

@@ -2,7 +2,8 @@
 //! windows coloured by true kind with the mixture's ellipses.
 
 use super::{
-    FONT, GRID, Heatmap, area_color, axis_number, draw_heatmaps, padded_range, with_canvas,
+    FONT, GRID, Heatmap, area_color, axis_number, draw_heatmaps, draw_legend, padded_range,
+    with_canvas,
 };
 use crate::Result;
 use crate::features::FeatureWindows;
@@ -136,13 +137,7 @@ pub fn draw_feature_scatter(path: &Path, windows: &FeatureWindows, r: &KindsResu
                 color.stroke_width(3),
             )))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font((FONT, 18))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK)
-            .draw()?;
+        draw_legend(&mut chart)?;
         Ok(())
     })
 }
