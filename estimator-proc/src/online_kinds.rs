@@ -48,6 +48,8 @@ pub struct KindsEstimator {
     envs: Vec<EnvWindow>,
     /// Full windows left out as stationary.
     stationary: u64,
+    /// The window being classified, refilled in place each tick.
+    series: Series,
 }
 
 impl KindsEstimator {
@@ -104,6 +106,16 @@ impl KindsEstimator {
             envs: vec![env; num_envs],
             stationary: 0,
             stored,
+            series: Series {
+                env: 0,
+                area: AreaKind::Flat,
+                first_tick: 0,
+                sin_pitch: Vec::with_capacity(w),
+                sin_roll: Vec::with_capacity(w),
+                xz: Vec::with_capacity(w),
+                // No slip feature online: the wheel command is never read.
+                command: vec![0.0; w],
+            },
         })
     }
 
@@ -178,25 +190,22 @@ impl KindsEstimator {
     }
 
     /// The stored features of env `env`'s full window, by the offline code.
-    fn features_of(&self, env: usize) -> Result<Vec<f64>> {
+    fn features_of(&mut self, env: usize) -> Result<Vec<f64>> {
         let ticks = &self.envs[env].ticks;
-        let column = |i: usize| ticks.iter().map(|t| t[i]).collect::<Vec<f64>>();
-        let series = Series {
-            env: env as u32,
-            area: AreaKind::Flat,
-            first_tick: 0,
-            sin_pitch: column(0),
-            sin_roll: column(1),
-            xz: ticks.iter().map(|t| [t[2], t[3]]).collect(),
-            command: vec![0.0; ticks.len()],
-        };
-        // The gate was applied above; no slip feature, so the wheels are never read.
+        let s = &mut self.series;
+        s.sin_pitch.clear();
+        s.sin_pitch.extend(ticks.iter().map(|t| t[0]));
+        s.sin_roll.clear();
+        s.sin_roll.extend(ticks.iter().map(|t| t[1]));
+        s.xz.clear();
+        s.xz.extend(ticks.iter().map(|t| [t[2], t[3]]));
+        // The gate was applied by the caller; without slip the wheels are never read.
         let wheels = Wheels {
             radius: 0.0,
             dt: 0.0,
         };
         let windows = features::window_features(
-            std::slice::from_ref(&series),
+            std::slice::from_ref(s),
             self.stored.window,
             &self.stored.features,
             0.0,

@@ -38,7 +38,7 @@ mod statistics;
 use super::UserError;
 use anyhow::Context;
 use common::Config;
-use common::config::{AreaKind, PolicySlot, WindowFeature};
+use common::config::{PolicySlot, WindowFeature};
 use legs::Evaluated;
 use pipeline::Pipeline;
 use std::path::{Path, PathBuf};
@@ -77,8 +77,7 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
         )
         .into());
     }
-    let paper_terrains = base.sim.terrain.kinds() == [AreaKind::Flat, AreaKind::Rough];
-    if !paper_terrains && base.estimator.features.contains(&WindowFeature::Slip) {
+    if !pipeline::paper_terrains(&base) && base.estimator.features.contains(&WindowFeature::Slip) {
         return Err(UserError(
             "beyond the paper's flat and rough areas, switching names terrain kinds online, \
              where `slip` is not available: drop it from estimator.features"

@@ -27,7 +27,7 @@ impl Pipeline {
     /// Whether the world is the paper's two terrains, where stage d is SPEC S7's analysis;
     /// with more kinds it is `estimator-proc kinds`, whose named classifier estimates online.
     pub(super) fn paper_terrains(&self) -> bool {
-        self.kinds() == [AreaKind::Flat, AreaKind::Rough]
+        paper_terrains(&self.base)
     }
 
     /// The base config with `n` envs on each terrain kind's area.
@@ -47,6 +47,11 @@ impl Pipeline {
         }
         cfg.estimator.refit_every = 0;
     }
+}
+
+/// Whether `cfg`'s world has SPEC S1's flat and rough areas and no other.
+pub(super) fn paper_terrains(cfg: &Config) -> bool {
+    cfg.sim.terrain.kinds() == [AreaKind::Flat, AreaKind::Rough]
 }
 
 /// Stage d's named classifier with more than two terrain kinds.
