@@ -577,13 +577,13 @@ mod tests {
     }
 
     #[test]
-    fn both_terrain_colliders_and_fewer_iterations_reach_the_world_and_drive_alike() {
+    fn both_terrain_colliders_and_the_imus_stepping_reach_the_world_and_drive_alike() {
         use rapier3d::prelude::ShapeType;
         let mut reached = Vec::new();
-        for (collider, iterations, kind) in [
-            (TerrainCollider::Heightfield, 4, ShapeType::HeightField),
-            (TerrainCollider::Trimesh, 4, ShapeType::TriMesh),
-            (TerrainCollider::Heightfield, 2, ShapeType::HeightField),
+        for (collider, imu_stepping, kind) in [
+            (TerrainCollider::Heightfield, false, ShapeType::HeightField),
+            (TerrainCollider::Trimesh, false, ShapeType::TriMesh),
+            (TerrainCollider::Heightfield, true, ShapeType::HeightField),
         ] {
             let mut cfg = SimConfig {
                 flat_envs: 0,
@@ -592,7 +592,10 @@ mod tests {
                 ..SimConfig::default()
             };
             cfg.terrain.collider = collider;
-            cfg.robot.solver_iterations = iterations;
+            if imu_stepping {
+                step_as_the_imu_needs(&mut cfg);
+            }
+            let iterations = cfg.robot.solver_iterations;
             let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), collider);
             let mut fleet = crate::Fleet::new(&cfg, &terrain, 3);
             let env = &fleet.envs[0];
@@ -619,6 +622,12 @@ mod tests {
         }
     }
 
+    /// The stepping a simulated IMU needs (`IMU_MAX_PHYSICS_DT`): Unity's 0.02 s step, 5 per
+    /// decision, 4 solver substeps each.
+    fn step_as_the_imu_needs(cfg: &mut SimConfig) {
+        (cfg.physics_dt, cfg.substeps, cfg.robot.solver_iterations) = (0.02, 5, 4);
+    }
+
     /// Mean rolling standard deviation of `xs` over windows of `w`.
     fn rolling_std(xs: &[f64], w: usize) -> f64 {
         let stds: Vec<f64> = xs
@@ -640,6 +649,7 @@ mod tests {
                 ..SimConfig::default()
             };
             cfg.observation = AttitudeSource::Imu;
+            step_as_the_imu_needs(&mut cfg);
             let terrain =
                 SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
             let mut env = Env::new(0, &cfg, &terrain, 11);
@@ -673,11 +683,12 @@ mod tests {
         // The truth path is untouched: an IMU the observation does not read
         // (`sim.imu.simulate`, or `estimator.signal = "imu"`) leaves physics and
         // observations bit-identical, and only then are the filtered angles there.
-        let cfg = SimConfig {
+        let mut cfg = SimConfig {
             flat_envs: 0,
             rough_envs: 1,
             ..SimConfig::default()
         };
+        step_as_the_imu_needs(&mut cfg);
         let mut sensed = cfg.clone();
         sensed.imu.simulate = true;
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);

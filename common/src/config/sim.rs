@@ -8,6 +8,10 @@ use super::{
 };
 use serde::{Deserialize, Serialize};
 
+/// The longest physics step a simulated IMU works with, seconds: it samples once per step,
+/// and below 50 Hz its attitude filter falls behind the chassis on rough ground.
+pub const IMU_MAX_PHYSICS_DT: f64 = 0.02;
+
 /// Which area an env lives in: a terrain kind's area (SPEC S1's flat and rough, and our
 /// `slope` and `gravel`), or the mixed course (our extension, for the switching evaluation),
 /// flat ground that crosses other kinds part-way.
@@ -109,9 +113,10 @@ pub struct SimConfig {
     /// the sim a tenth of its speed; the price is up to this much delay before a reader sees
     /// a tick. 0: wake them on every tick. 0 ..= 1000000. Default 1000.
     pub telemetry_notify_us: usize,
-    /// Physics time step, seconds. SPEC S2 (interpretation: Unity's default). (0, 0.1]. Default 0.02.
+    /// Physics time step, seconds: contacts are found once per step (SPEC S2). (0, 0.1].
+    /// Default 1/30; a simulated IMU, which samples once per step, needs at most 0.02.
     pub physics_dt: f64,
-    /// Physics steps per decision step. SPEC S2. 1 ..= 100. Default 5.
+    /// Physics steps per decision step (SPEC S2). 1 ..= 100. Default 3.
     pub substeps: usize,
     pub terrain: TerrainConfig,
     pub robot: RobotConfig,
@@ -137,8 +142,8 @@ impl Default for SimConfig {
             switch_dwell: 10,
             mean_actions: false,
             telemetry_notify_us: 1000,
-            physics_dt: 0.02,
-            substeps: 5,
+            physics_dt: 1.0 / 30.0,
+            substeps: 3,
             terrain: TerrainConfig::default(),
             robot: RobotConfig::default(),
             observation: AttitudeSource::Truth,
@@ -254,6 +259,17 @@ impl SimConfig {
         count_in("sim.threads", self.threads, 1, 64)?;
         in_range("sim.physics-dt", self.physics_dt, 1e-4, 0.1)?;
         count_in("sim.substeps", self.substeps, 1, 100)?;
+        if self.simulates_imu() && self.physics_dt > IMU_MAX_PHYSICS_DT + 1e-12 {
+            return Err(invalid(
+                "sim.physics-dt",
+                self.physics_dt,
+                format!(
+                    "the simulated IMU samples once per physics step and needs at most \
+                     {IMU_MAX_PHYSICS_DT} s: set sim.physics-dt = 0.02, sim.substeps = 5 and \
+                     sim.robot.solver-iterations = 4"
+                ),
+            ));
+        }
         self.external.validate()?;
         self.terrain.validate()?;
         self.robot.validate()?;

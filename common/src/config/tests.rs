@@ -88,7 +88,7 @@ fn heightmap_path_survives_being_rewritten_elsewhere() {
 #[test]
 fn a_partial_imu_table_keeps_each_sensors_own_defaults() {
     let c = parse(
-        "[sim]\nobservation = \"imu\"\n[sim.imu.accel]\nbits = 12\n[sim.imu.filter]\nkp = 2.0\n",
+        "[sim]\nobservation = \"imu\"\nphysics-dt = 0.02\nsubsteps = 5\n[sim.imu.accel]\nbits = 12\n[sim.imu.filter]\nkp = 2.0\n",
     )
     .expect("partial tables");
     assert_eq!(c.sim.observation, AttitudeSource::Imu);
@@ -117,13 +117,32 @@ fn the_estimators_imu_signal_needs_the_imu_simulated() {
         "{e}"
     );
     for with_imu in [
-        "[sim]\nobservation = \"imu\"\n",
-        "[sim.imu]\nsimulate = true\n",
+        "[sim]\nobservation = \"imu\"\nphysics-dt = 0.02\nsubsteps = 5\n",
+        "[sim]\nphysics-dt = 0.02\nsubsteps = 5\n[sim.imu]\nsimulate = true\n",
     ] {
         let c = parse(&format!("{with_imu}[estimator]\nsignal = \"imu\"\n")).expect(with_imu);
         assert!(c.sim.simulates_imu() && c.estimator.signal == AttitudeSource::Imu);
     }
     assert!(!Config::default().sim.simulates_imu());
+}
+
+#[test]
+fn a_simulated_imu_needs_a_physics_step_of_at_most_20_ms() {
+    // The default step, 1/30 s, is too long for the IMU: one line names the field and the fix.
+    for text in [
+        "[sim]\nobservation = \"imu\"\n",
+        "[sim]\nphysics-dt = 0.025\nsubsteps = 4\n[sim.imu]\nsimulate = true\n",
+    ] {
+        let e = parse(text).expect_err(text);
+        assert!(
+            e.to_string().contains("sim.physics-dt") && e.to_string().contains("= 0.02"),
+            "{e}"
+        );
+    }
+    let c =
+        parse("[sim]\nobservation = \"imu\"\nphysics-dt = 0.02\nsubsteps = 5\n").expect("50 Hz");
+    assert_eq!(c.sim.decision_dt(), 0.1);
+    assert!((Config::default().sim.decision_dt() - 0.1).abs() < 1e-12);
 }
 
 #[test]
@@ -140,7 +159,7 @@ fn a_config_extends_another_and_overrides_only_its_own_keys() {
     );
     let top = write(
         "top.toml",
-        "extends = \"base.toml\"\n[sim]\nrough-envs = 1\nobservation = \"imu\"\n",
+        "extends = \"base.toml\"\n[sim]\nrough-envs = 1\nobservation = \"imu\"\nphysics-dt = 0.02\nsubsteps = 5\n",
     );
     let c = Config::load(&top).expect("extended");
     assert_eq!((c.run.seed, c.sim.threads), (7, 1));
