@@ -89,6 +89,21 @@ impl Monitor {
         (b.1 - a.1) as f64 / (b.0 - a.0).as_secs_f64().max(1e-9)
     }
 
+    /// The longest wait between two received ticks from `from` to `to`.
+    fn longest_pause(&self, from: Instant, to: Instant) -> Duration {
+        let inside: Vec<Instant> = self
+            .tick_log
+            .iter()
+            .map(|(t, _)| *t)
+            .filter(|t| *t >= from && *t <= to)
+            .collect();
+        inside
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(to - from)
+    }
+
     fn last_tick(&self) -> u64 {
         self.tick_log.last().map_or(0, |t| t.1)
     }
@@ -198,9 +213,12 @@ fn the_sim_survives_learner_and_estimator_faults_swaps_and_strangers() {
         Some(&(last_old + 1)),
         "its first new version is the last one plus 1: {versions:?}"
     );
+    // The sim never waits for a learner: it ticks on through the outage, slowed only by
+    // sharing 2 cores with the learner starting up again.
+    let pause = m.longest_pause(killed_at, back_at);
     assert!(
-        during >= 0.8 * before,
-        "ticks/s during the outage {during:.0} vs before {before:.0}"
+        pause < Duration::from_millis(500) && during >= 0.5 * before,
+        "ticks/s during the outage {during:.0} vs before {before:.0}, longest pause {pause:?}"
     );
     let (resumed, digest) = last_resume(&learner_log);
     let ckpt = learner_proc::checkpoint::read(&resumed).expect("resumed checkpoint");
