@@ -213,11 +213,10 @@ fn the_sim_survives_learner_and_estimator_faults_swaps_and_strangers() {
         Some(&(last_old + 1)),
         "its first new version is the last one plus 1: {versions:?}"
     );
-    // The sim never waits for a learner: it ticks on through the outage, slowed only by
-    // sharing 2 cores with the learner starting up again.
+    // The sim never waits for a learner: no pause in its ticks, and its rate holds.
     let pause = m.longest_pause(killed_at, back_at);
     assert!(
-        pause < Duration::from_millis(500) && during >= 0.5 * before,
+        pause < Duration::from_millis(500) && during >= 0.8 * before,
         "ticks/s during the outage {during:.0} vs before {before:.0}, longest pause {pause:?}"
     );
     let (resumed, digest) = last_resume(&learner_log);
