@@ -46,6 +46,8 @@ pub struct KindsEstimator {
     /// Path over a window below which it is stationary, metres.
     min_travel: f64,
     envs: Vec<EnvWindow>,
+    /// Where the classifier's features hold the std of sin θx, if they do.
+    pitch_std_at: Option<usize>,
     /// Full windows left out as stationary.
     stationary: u64,
     /// The window being classified, refilled in place each tick.
@@ -102,6 +104,10 @@ impl KindsEstimator {
         };
         Ok(Self {
             min_travel: min_step_travel * (w - 1) as f64,
+            pitch_std_at: stored
+                .features
+                .iter()
+                .position(|f| *f == WindowFeature::PitchStd),
             beyond,
             envs: vec![env; num_envs],
             stationary: 0,
@@ -177,12 +183,7 @@ impl KindsEstimator {
             KindEstimate::default()
         };
         let estimate = KindEstimate {
-            pitch_std: self
-                .stored
-                .features
-                .iter()
-                .position(|f| *f == WindowFeature::PitchStd)
-                .map(|i| x[i]),
+            pitch_std: self.pitch_std_at.map(|i| x[i]),
             ..estimate
         };
         self.envs[env].held = estimate;
