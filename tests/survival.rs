@@ -108,14 +108,19 @@ impl Monitor {
         self.tick_log.last().map_or(0, |t| t.1)
     }
 
-    /// The pid of the run's live process `name`.
-    fn pid(&self, name: &str) -> i32 {
+    /// The pid of the run's live process `name`, if its node is up.
+    fn live_pid(&self, name: &str) -> Option<i32> {
         ipc::list_nodes(&self.run)
             .expect("nodes")
             .into_iter()
             .find(|n| n.alive && n.name == name)
+            .map(|n| n.pid)
+    }
+
+    /// The pid of the run's live process `name`.
+    fn pid(&self, name: &str) -> i32 {
+        self.live_pid(name)
             .unwrap_or_else(|| panic!("no live {name}"))
-            .pid
     }
 
     /// Policy messages of learner `pid`.
@@ -297,6 +302,10 @@ fn the_sim_survives_learner_and_estimator_faults_swaps_and_strangers() {
     };
     let swap_to = Instant::now();
     assert!(swapped.success());
+    // The swap returns once the new learner is started; its node comes up a moment later.
+    m.until("the swapped-in learner's node", |m| {
+        m.live_pid("learner").is_some_and(|p| p != learner)
+    });
     let swapped_in = m.pid("learner");
     assert_ne!(swapped_in, learner);
     let in_swap = m.rate(swap_from, swap_to);
