@@ -29,7 +29,7 @@ fn train_in_process(cfg: &Config, source: u32) -> Learner {
         Policy::new(layout, learner.policy_weights(), cfg.ppo.obs_clip as f32).expect("policy");
     let ctrl = PolicyController::new(policy, true, sim_seed);
     let mut policies = PolicySet::new(PolicySlot::General, ctrl, learner.policy_version());
-    let mut driver = Driver::new(&fleet);
+    let mut driver = Driver::new(&fleet, sim_seed);
     let (n, t) = (fleet.len(), cfg.ppo.rollout_steps(fleet.len()));
     let wanted = vec![PolicySlot::General; n];
     let mut chunk = Vec::new();
@@ -37,7 +37,7 @@ fn train_in_process(cfg: &Config, source: u32) -> Learner {
     while env_steps < cfg.run.total_steps {
         chunk.clear();
         for _ in 0..t {
-            driver.tick(&mut fleet, &mut policies, &wanted, &[], &mut chunk);
+            driver.tick(&mut fleet, &policies, &wanted, &[], &mut chunk);
         }
         env_steps += (t * n) as u64;
         driver.bootstrap(&mut chunk);

@@ -133,13 +133,20 @@ impl PolicyLayout {
     }
 }
 
-/// A policy ready to evaluate: its layout, weights and reusable scratch space.
+/// A policy ready to evaluate: its layout and weights. Evaluating it reads them only, so
+/// several threads can act with one policy, each with its own [`Scratch`].
 #[derive(Debug, Clone)]
 pub struct Policy {
     layout: PolicyLayout,
     layers: Vec<DenseLayer>,
     weights: Vec<f32>,
     obs_clip: f32,
+}
+
+/// The activations of one evaluation, reused from one call to the next; sized on first use
+/// by the widest layer it meets.
+#[derive(Debug, Clone, Default)]
+pub struct Scratch {
     a: Vec<f32>,
     b: Vec<f32>,
 }
@@ -167,14 +174,11 @@ impl Policy {
                 got: weights.len(),
             });
         }
-        let width = layout.max_width();
         Ok(Self {
             layers: layout.dense_layers(),
             layout,
             weights,
             obs_clip,
-            a: vec![0.0; width],
-            b: vec![0.0; width],
         })
     }
 
@@ -205,18 +209,24 @@ impl Policy {
     }
 
     /// The action mean for one observation, written to `mean` (`[act]`).
-    pub fn mean_action(&mut self, obs: &[f32], mean: &mut [f32]) {
+    pub fn mean_action(&self, obs: &[f32], mean: &mut [f32], s: &mut Scratch) {
         debug_assert_eq!(mean.len(), self.layout.act_dim);
-        self.forward(obs);
-        mean.copy_from_slice(&self.a[..self.layout.act_dim]);
+        self.forward(obs, s);
+        mean.copy_from_slice(&s.a[..self.layout.act_dim]);
     }
 
     /// An unclipped action for one observation, written to `action` (`[act]`), and its
     /// log-probability: a draw from the policy's Gaussian with `rng`, its mean without.
-    pub fn sample(&mut self, obs: &[f32], rng: Option<&mut Rng>, action: &mut [f32]) -> f32 {
+    pub fn sample(
+        &self,
+        obs: &[f32],
+        rng: Option<&mut Rng>,
+        action: &mut [f32],
+        s: &mut Scratch,
+    ) -> f32 {
         debug_assert_eq!(action.len(), self.layout.act_dim);
-        self.forward(obs);
-        let (mean, log_std) = (&self.a[..self.layout.act_dim], self.log_std());
+        self.forward(obs, s);
+        let (mean, log_std) = (&s.a[..self.layout.act_dim], self.log_std());
         match rng {
             Some(rng) => sample_gaussian(mean, log_std, rng, action),
             None => {
@@ -226,24 +236,29 @@ impl Policy {
         }
     }
 
-    /// Evaluates the network on one observation, leaving the action mean in `a[..act]`.
-    fn forward(&mut self, obs: &[f32]) {
+    /// Evaluates the network on one observation, leaving the action mean in `s.a[..act]`.
+    fn forward(&self, obs: &[f32], s: &mut Scratch) {
         let l = &self.layout;
         debug_assert_eq!(obs.len(), l.obs_dim);
+        let width = l.max_width();
+        if s.a.len() < width {
+            s.a.resize(width, 0.0);
+            s.b.resize(width, 0.0);
+        }
         let (mu, var) = (
             &self.weights[l.obs_mean()..l.obs_mean() + l.obs_dim],
             &self.weights[l.obs_var()..l.obs_var() + l.obs_dim],
         );
         for i in 0..l.obs_dim {
             let z = (obs[i] - mu[i]) / (var[i] + OBS_NORM_EPS).sqrt();
-            self.a[i] = z.clamp(-self.obs_clip, self.obs_clip);
+            s.a[i] = z.clamp(-self.obs_clip, self.obs_clip);
         }
         let last = self.layers.len() - 1;
         for (n, d) in self.layers.iter().enumerate() {
             let w = &self.weights[d.weight..d.weight + d.inputs * d.outputs];
-            let out = &mut self.b[..d.outputs];
+            let out = &mut s.b[..d.outputs];
             out.copy_from_slice(&self.weights[d.bias..d.bias + d.outputs]);
-            for (i, &x) in self.a[..d.inputs].iter().enumerate() {
+            for (i, &x) in s.a[..d.inputs].iter().enumerate() {
                 let row = &w[i * d.outputs..(i + 1) * d.outputs];
                 for (o, &wij) in out.iter_mut().zip(row) {
                     *o += x * wij;
@@ -254,7 +269,7 @@ impl Policy {
                     *o = o.tanh();
                 }
             }
-            std::mem::swap(&mut self.a, &mut self.b);
+            std::mem::swap(&mut s.a, &mut s.b);
         }
     }
 }
@@ -409,9 +424,9 @@ mod tests {
             0.3,               // head bias
             -0.5,              // log std
         ];
-        let mut p = Policy::new(l, w, 5.0).expect("layout");
+        let p = Policy::new(l, w, 5.0).expect("layout");
         let mut out = [0.0];
-        p.mean_action(&[3.0, 1.0], &mut out);
+        p.mean_action(&[3.0, 1.0], &mut out, &mut Scratch::default());
         // z = ((3-1)/2, (1-2)/1) = (1, -1)
         // z0·W[0][0] + z1·W[1][0] + b0 and z0·W[0][1] + z1·W[1][1] + b1, with z = (1, −1).
         let h0 = (0.5f32 - 0.25 + 0.1).tanh();
@@ -424,9 +439,9 @@ mod tests {
     fn observation_clip_and_length_check() {
         let l = PolicyLayout::new(1, &[], 1);
         // mean 0, var 1, head weight 1, bias 0, log std 0
-        let mut p = Policy::new(l.clone(), vec![0.0, 1.0, 1.0, 0.0, 0.0], 2.0).expect("layout");
+        let p = Policy::new(l.clone(), vec![0.0, 1.0, 1.0, 0.0, 0.0], 2.0).expect("layout");
         let mut out = [0.0];
-        p.mean_action(&[100.0], &mut out);
+        p.mean_action(&[100.0], &mut out, &mut Scratch::default());
         assert!((out[0] - 2.0).abs() < 1e-6);
         let err = Policy::new(l, vec![0.0; 3], 2.0).expect_err("short");
         assert_eq!((err.want, err.got), (5, 3));
@@ -470,15 +485,16 @@ mod tests {
         // obs 1 → mean (2·1.5 + 0.5, −1·1.5) = (3.5, −1.5); σ = (1, 2).
         let l = PolicyLayout::new(1, &[], 2);
         let w = vec![0.0, 1.0, 2.0, -1.0, 0.5, 0.0, 0.0, std::f32::consts::LN_2];
-        let mut p = Policy::new(l, w, 5.0).expect("layout");
+        let p = Policy::new(l, w, 5.0).expect("layout");
         let mut action = [0.0; 2];
-        let lp = p.sample(&[1.5], None, &mut action);
+        let mut s = Scratch::default();
+        let lp = p.sample(&[1.5], None, &mut action, &mut s);
         assert_eq!(action, [3.5, -1.5]);
         // −ln 2 − 2·½·ln(2π) = −2.531024.
         assert!((lp + 2.531_024).abs() < 1e-5, "{lp}");
 
         let mut rng = Rng::new(1);
-        let lp = p.sample(&[1.5], Some(&mut rng), &mut action);
+        let lp = p.sample(&[1.5], Some(&mut rng), &mut action, &mut s);
         let mut want = [0.0; 2];
         let want_lp = sample_gaussian(
             &[3.5, -1.5],

@@ -3,7 +3,7 @@
 use std::process::Command;
 
 use common::config::Config;
-use common::policy::PolicyLayout;
+use common::policy::{PolicyLayout, Scratch};
 use common::{ACT_DIM, OBS_DIM, Transition};
 use learner_proc::{Learner, Rollout};
 
@@ -135,12 +135,11 @@ fn export_writes_the_published_actor_as_a_policy_file() {
     assert!(out.status.success(), "{out:?}");
     assert!(String::from_utf8_lossy(&out.stdout).contains("10 -> 128 -> 128 -> 2"));
     let bytes = std::fs::read(&file).expect("policy file");
-    let mut exported = common::Policy::from_bytes(&bytes, &file).expect("parses");
-    let mut published =
-        common::Policy::new(layout, learner.policy_weights(), 10.0).expect("policy");
+    let exported = common::Policy::from_bytes(&bytes, &file).expect("parses");
+    let published = common::Policy::new(layout, learner.policy_weights(), 10.0).expect("policy");
     let obs = [0.3f32, -1.0, 0.5, 2.0, 0.0, 0.1, -0.2, 0.7, 1.5, -3.0];
     let (mut a, mut b) = ([0.0f32; ACT_DIM], [0.0f32; ACT_DIM]);
-    exported.mean_action(&obs, &mut a);
-    published.mean_action(&obs, &mut b);
+    exported.mean_action(&obs, &mut a, &mut Scratch::default());
+    published.mean_action(&obs, &mut b, &mut Scratch::default());
     assert_eq!(a, b);
 }

@@ -7,7 +7,7 @@
 use std::f64::consts::PI;
 
 use common::config::Config;
-use common::policy::PolicyLayout;
+use common::policy::{PolicyLayout, Scratch};
 use common::{ACT_DIM, OBS_DIM, Policy, Rng, Transition};
 use learner_proc::{EpisodeOutcome, Learner, MetricsLog, Rollout};
 
@@ -88,14 +88,15 @@ impl PointEnv {
 
 /// Success rate and mean return of the deterministic policy over fixed episodes.
 fn evaluate(weights: Vec<f32>, layout: &PolicyLayout, obs_clip: f32) -> (f64, f64) {
-    let mut policy = Policy::new(layout.clone(), weights, obs_clip).expect("layout");
+    let policy = Policy::new(layout.clone(), weights, obs_clip).expect("layout");
+    let mut scratch = Scratch::default();
     let episodes = 64;
     let (mut successes, mut total) = (0, 0.0f64);
     for e in 0..episodes {
         let mut env = PointEnv::new(10_000 + e);
         loop {
             let mut a = [0.0; ACT_DIM];
-            policy.mean_action(&env.obs(), &mut a);
+            policy.mean_action(&env.obs(), &mut a, &mut scratch);
             let (_, terminated, truncated) = env.step(a);
             if terminated || truncated {
                 successes += usize::from(terminated);

@@ -3,13 +3,28 @@
 //! forward; no burn here).
 //! All act from the SPEC S5 observation alone.
 
-use crate::SimError;
+use crate::env::StepInfo;
+use crate::{Fleet, SimError};
+use common::policy::Scratch;
 use common::{ACT_DIM, OBS_DIM, Policy, Rng};
 use std::path::Path;
 
 /// Picks one env's wheel commands from its observation.
 pub trait Controller: Send {
     fn act(&mut self, env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM];
+
+    /// Steps `fleet` once with the actions for `obs`, writing each env's step info and next
+    /// observation: by default every env's action first, in order, on this thread.
+    fn step(
+        &mut self,
+        fleet: &mut Fleet,
+        obs: &[[f32; OBS_DIM]],
+        infos: &mut [StepInfo],
+        next_obs: &mut [[f32; OBS_DIM]],
+    ) {
+        let actions: Vec<[f32; ACT_DIM]> = (0..fleet.len()).map(|i| self.act(i, &obs[i])).collect();
+        fleet.step(&actions, infos, next_obs);
+    }
 }
 
 /// Uniform random wheel commands, each held for `hold` ticks (so the robot actually goes
@@ -158,7 +173,9 @@ pub struct PolicyController {
     pub policy: Policy,
     /// Sample from the policy's Gaussian rather than act with its mean.
     pub stochastic: bool,
-    rng: Rng,
+    seed: u64,
+    /// Env `i`'s [`Actor::for_env`], made when env `i` first acts.
+    actors: Vec<Actor>,
 }
 
 impl PolicyController {
@@ -166,22 +183,82 @@ impl PolicyController {
         Self {
             policy,
             stochastic,
-            rng: Rng::derive(seed, 0xAC7),
+            seed,
+            actors: Vec::new(),
         }
     }
 
-    /// The unclipped action and its log-probability under the policy (the sim clips it).
-    pub fn sample(&mut self, obs: &[f32; OBS_DIM]) -> ([f32; ACT_DIM], f32) {
-        let mut action = [0.0; ACT_DIM];
-        let rng = self.stochastic.then_some(&mut self.rng);
-        let lp = self.policy.sample(obs, rng, &mut action);
-        (action, lp)
+    /// The unclipped action for `obs` and its log-probability under the policy (the sim
+    /// clips it), drawn with `actor`'s stream. Reads the policy only, so envs act in parallel.
+    pub fn sample(&self, obs: &[f32; OBS_DIM], actor: &mut Actor) -> ([f32; ACT_DIM], f32) {
+        actor.sample(&self.policy, self.stochastic, obs)
+    }
+
+    fn actors_for(&mut self, envs: usize) {
+        let seed = self.seed;
+        let have = self.actors.len();
+        self.actors
+            .extend((have..envs).map(|i| Actor::for_env(seed, i)));
     }
 }
 
 impl Controller for PolicyController {
-    fn act(&mut self, _env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
-        self.sample(obs).0
+    fn act(&mut self, env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM] {
+        self.actors_for(env + 1);
+        self.actors[env]
+            .sample(&self.policy, self.stochastic, obs)
+            .0
+    }
+
+    /// Each env samples on the thread that steps it, as in a run ([`crate::driver::Driver`]).
+    fn step(
+        &mut self,
+        fleet: &mut Fleet,
+        obs: &[[f32; OBS_DIM]],
+        infos: &mut [StepInfo],
+        next_obs: &mut [[f32; OBS_DIM]],
+    ) {
+        self.actors_for(fleet.len());
+        let (policy, stochastic) = (&self.policy, self.stochastic);
+        fleet.decide_and_step(
+            self.actors.iter_mut(),
+            &|i, actor| actor.sample(policy, stochastic, &obs[i]).0,
+            infos,
+            next_obs,
+        );
+    }
+}
+
+/// Where env `i`'s sampling stream sits among those a seed derives: `ACTOR_STREAMS + i`.
+const ACTOR_STREAMS: u64 = 0xAC7_0000;
+
+/// One env's means to act: its own random stream and the network's scratch space, so the
+/// envs of a fleet sample in parallel and each draws the same numbers whichever thread
+/// serves it.
+pub struct Actor {
+    rng: Rng,
+    scratch: Scratch,
+}
+
+impl Actor {
+    /// Env `i`'s actor under the sim seed `seed`.
+    pub fn for_env(seed: u64, i: usize) -> Self {
+        Self {
+            rng: Rng::derive(seed, ACTOR_STREAMS + i as u64),
+            scratch: Scratch::default(),
+        }
+    }
+
+    fn sample(
+        &mut self,
+        policy: &Policy,
+        stochastic: bool,
+        obs: &[f32; OBS_DIM],
+    ) -> ([f32; ACT_DIM], f32) {
+        let mut action = [0.0; ACT_DIM];
+        let rng = stochastic.then_some(&mut self.rng);
+        let lp = policy.sample(obs, rng, &mut action, &mut self.scratch);
+        (action, lp)
     }
 }
 

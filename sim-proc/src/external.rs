@@ -53,10 +53,11 @@ pub struct GymEnvs {
 impl GymEnvs {
     /// The envs of `cfg` seeded as a run with `seed` seeds them.
     pub fn new(cfg: &SimConfig, terrain: &SharedTerrain, seed: u64, source: u32) -> Self {
-        let fleet = Fleet::new(cfg, terrain, Rng::source_seed(seed, source));
+        let seed = Rng::source_seed(seed, source);
+        let fleet = Fleet::new(cfg, terrain, seed);
         let n = fleet.len();
         Self {
-            driver: Driver::new(&fleet),
+            driver: Driver::new(&fleet, seed),
             fleet,
             cfg: cfg.clone(),
             terrain: terrain.clone(),

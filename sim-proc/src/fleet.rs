@@ -42,25 +42,46 @@ impl Fleet {
     }
 
     /// Steps every env with its action, writing each env's step info and next observation.
-    /// The threads take the envs one at a time, in order, so a thread the scheduler holds
-    /// back (a reader or the learner on the same core) delays one env, not its share of the
-    /// fleet.
     pub fn step(
         &mut self,
         actions: &[[f32; ACT_DIM]],
         infos: &mut [StepInfo],
         obs: &mut [[f32; OBS_DIM]],
     ) {
+        self.decide_and_step(actions.iter(), &|_, a| *a, infos, obs);
+    }
+
+    /// Steps every env with the action `decide` picks for env `i` from its own item of
+    /// `lanes` (e.g. its random stream), writing each env's step info and next observation. Deciding runs on the pool's threads beside the physics, so
+    /// a policy's forward passes do not wait for one thread.
+    ///
+    /// The threads take the envs one at a time, in order, so a thread the scheduler holds
+    /// back (a reader or the learner on the same core) delays one env, not its share of the
+    /// fleet.
+    pub fn decide_and_step<T: Send>(
+        &mut self,
+        lanes: impl Iterator<Item = T> + Send,
+        decide: &(dyn Fn(usize, T) -> [f32; ACT_DIM] + Sync),
+        infos: &mut [StepInfo],
+        obs: &mut [[f32; OBS_DIM]],
+    ) {
         // One shared iterator: each thread takes the next env under the lock and steps it
         // outside, so nothing is allocated per tick.
-        let work = Mutex::new(self.envs.iter_mut().zip(actions).zip(infos).zip(obs));
+        let work = Mutex::new(
+            self.envs
+                .iter_mut()
+                .enumerate()
+                .zip(lanes)
+                .zip(infos)
+                .zip(obs),
+        );
         self.pool.run(&|_| {
             loop {
                 let next = work.lock().unwrap_or_else(PoisonError::into_inner).next();
-                let Some((((e, a), i), o)) = next else {
+                let Some(((((i, e), lane), info), o)) = next else {
                     break;
                 };
-                *i = e.step(*a);
+                *info = e.step(decide(i, lane));
                 *o = e.observe();
             }
         });

@@ -105,8 +105,8 @@ impl Inbox {
             let layout = h.layout();
             let fresh = |weights: &[f32]| -> anyhow::Result<PolicyController> {
                 let policy = Policy::new(layout.clone(), weights.to_vec(), h.obs_clip)?;
-                // The general slot keeps the run seed's stream, so a one-learner run acts as
-                // the single-process loop does (tests/sync_equivalence.rs).
+                // The envs sample with the driver's streams; this one serves only
+                // `Controller::act`, kept apart per slot.
                 let seed = self.seed.wrapping_add(slot.index() as u64);
                 Ok(PolicyController::new(policy, self.stochastic, seed))
             };
@@ -209,7 +209,7 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
     }
     tracing::info!(learners = ?inbox.learners(), "first policy received");
 
-    let mut driver = Driver::new(&fleet);
+    let mut driver = Driver::new(&fleet, seed);
     let mut chunk = Vec::with_capacity(t_steps * n + n);
     // Resumed, the run goes on from the steps its learners' checkpoints had learned from
     // (what the sim stepped after them is collected again); chunk ids start over, as they
@@ -228,7 +228,7 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
         chunk.clear();
         for _ in 0..t_steps {
             let wanted = switcher.update(&outputs.classes);
-            let policies = inbox.policies.as_mut().context("no policy")?;
+            let policies = inbox.policies.as_ref().context("no policy")?;
             driver.tick(&mut fleet, policies, wanted, &outputs.classes, &mut chunk);
             env_steps += n as u64;
             outputs.publish(&fleet, &driver, env_steps, inbox.version())?;

@@ -49,15 +49,13 @@ pub fn drive(
 ) -> anyhow::Result<Summary> {
     let n = fleet.len();
     let mut obs = vec![[0.0f32; OBS_DIM]; n];
-    let mut actions = vec![[0.0f32; 2]; n];
+    let mut next = vec![[0.0f32; OBS_DIM]; n];
     let mut infos = vec![StepInfo::default(); n];
     fleet.observe(&mut obs);
     let mut s = Summary::default();
     for _ in 0..steps {
-        for (i, a) in actions.iter_mut().enumerate() {
-            *a = controller.act(i, &obs[i]);
-        }
-        fleet.step(&actions, &mut infos, &mut obs);
+        controller.step(fleet, &obs, &mut infos, &mut next);
+        std::mem::swap(&mut obs, &mut next);
         for (i, env) in fleet.envs.iter().enumerate() {
             let info = &infos[i];
             sink(&telemetry_row(env, info), &obs[i])?;

@@ -3,7 +3,7 @@
 //! names or, when switching, with the specialist for the estimator's current class — changed
 //! only after the new estimate has held for a dwell time, so one noisy window does not flip it.
 
-use crate::controllers::PolicyController;
+use crate::controllers::{Actor, PolicyController};
 use common::config::{Acting, PolicySlot};
 
 /// The sim's policies, one per slot, with the version each acts at.
@@ -50,18 +50,20 @@ impl PolicySet {
             .unwrap_or(wanted)
     }
 
-    /// Samples an action for `obs` with the slot that acts for `wanted`; returns that slot,
-    /// its version, the unclipped action and its log-probability.
+    /// Samples an action for `obs` with the slot that acts for `wanted`, drawing from
+    /// `actor`'s stream; returns that slot, its version, the unclipped action and its
+    /// log-probability.
     pub fn sample(
-        &mut self,
+        &self,
         wanted: PolicySlot,
         obs: &[f32; common::OBS_DIM],
+        actor: &mut Actor,
     ) -> (PolicySlot, u32, [f32; common::ACT_DIM], f32) {
         let slot = self.resolve(wanted);
         let version = self.version(slot);
-        match self.slots[slot.index()].as_mut() {
+        match self.slots[slot.index()].as_ref() {
             Some(c) => {
-                let (a, lp) = c.sample(obs);
+                let (a, lp) = c.sample(obs, actor);
                 (slot, version, a, lp)
             }
             None => unreachable!("PolicySet::new fills a slot and none is ever emptied"),
@@ -172,7 +174,8 @@ mod tests {
         policies.insert(PolicySlot::General, policy(0.2), 3);
         assert_eq!(policies.resolve(PolicySlot::Flat), PolicySlot::General);
         assert_eq!(policies.resolve(PolicySlot::Rough), PolicySlot::Rough);
-        let (slot, version, _, _) = policies.sample(PolicySlot::Rough, &[0.0; OBS_DIM]);
+        let mut actor = Actor::for_env(1, 0);
+        let (slot, version, _, _) = policies.sample(PolicySlot::Rough, &[0.0; OBS_DIM], &mut actor);
         assert_eq!((slot, version), (PolicySlot::Rough, 7));
     }
 }

@@ -2,6 +2,7 @@ use super::minibatch::{kl_and_clipfrac, normalise_advantages};
 use super::update::explained_variance;
 use super::*;
 use common::Policy;
+use common::policy::Scratch;
 
 /// A small config: 64-64 networks, `steps × envs` rollouts, LR decay over `updates` of them.
 pub(crate) fn small_config(minibatch: usize, updates: u64) -> Config {
@@ -101,12 +102,13 @@ fn burn_actor_matches_common_policy() {
         .collect();
 
     let burn_means = learner.mean_actions(&obs).expect("burn forward");
-    let mut policy =
+    let policy =
         Policy::new(learner.layout().clone(), learner.policy_weights(), 3.0).expect("layout");
+    let mut scratch = Scratch::default();
     let mut worst = 0.0f32;
     for (o, b) in obs.iter().zip(&burn_means) {
         let mut m = [0.0; ACT_DIM];
-        policy.mean_action(o, &mut m);
+        policy.mean_action(o, &mut m, &mut scratch);
         for k in 0..ACT_DIM {
             worst = worst.max((m[k] - b[k]).abs());
         }

@@ -437,6 +437,7 @@ fn in_run(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::policy::Scratch;
 
     #[test]
     fn learner_metrics_average_the_updates() {
@@ -458,10 +459,10 @@ mod tests {
         let cfg = common::Config::default();
         let p = RandomPolicy::write(&cfg, dir.path()).expect("write");
         let bytes = std::fs::read(&p.path).expect("read");
-        let mut back = Policy::from_bytes(&bytes, &p.path).expect("parse");
+        let back = Policy::from_bytes(&bytes, &p.path).expect("parse");
         assert_eq!(back.weights(), &p.weights[..]);
         let mut mean = [0.0; ACT_DIM];
-        back.mean_action(&[0.3; OBS_DIM], &mut mean);
+        back.mean_action(&[0.3; OBS_DIM], &mut mean, &mut Scratch::default());
         assert!(
             mean.iter().all(|a| a.is_finite() && a.abs() < 10.0),
             "{mean:?}"
