@@ -13,18 +13,21 @@ use std::path::Path;
 pub trait Controller: Send {
     fn act(&mut self, env: usize, obs: &[f32; OBS_DIM]) -> [f32; ACT_DIM];
 
-    /// Steps `fleet` once with the actions for `obs`, writing each env's step info and next
-    /// observation: by default every env's action first, in order, on this thread.
-    fn step(
-        &mut self,
-        fleet: &mut Fleet,
-        obs: &[[f32; OBS_DIM]],
-        infos: &mut [StepInfo],
-        next_obs: &mut [[f32; OBS_DIM]],
-    ) {
-        let actions: Vec<[f32; ACT_DIM]> = (0..fleet.len()).map(|i| self.act(i, &obs[i])).collect();
-        fleet.step(&actions, infos, next_obs);
+    /// Steps `fleet` once with the actions for `obs`, writing each env's action, step info
+    /// and next observation: by default every env's action first, in order, on this thread.
+    fn step(&mut self, fleet: &mut Fleet, obs: &[[f32; OBS_DIM]], out: StepOut<'_>) {
+        for (i, a) in out.actions.iter_mut().enumerate() {
+            *a = self.act(i, &obs[i]);
+        }
+        fleet.step(out.actions, out.infos, out.next_obs);
     }
+}
+
+/// Where [`Controller::step`] writes, one entry per env.
+pub struct StepOut<'a> {
+    pub actions: &'a mut [[f32; ACT_DIM]],
+    pub infos: &'a mut [StepInfo],
+    pub next_obs: &'a mut [[f32; OBS_DIM]],
 }
 
 /// Uniform random wheel commands, each held for `hold` ticks (so the robot actually goes
@@ -211,20 +214,17 @@ impl Controller for PolicyController {
     }
 
     /// Each env samples on the thread that steps it, as in a run ([`crate::driver::Driver`]).
-    fn step(
-        &mut self,
-        fleet: &mut Fleet,
-        obs: &[[f32; OBS_DIM]],
-        infos: &mut [StepInfo],
-        next_obs: &mut [[f32; OBS_DIM]],
-    ) {
+    fn step(&mut self, fleet: &mut Fleet, obs: &[[f32; OBS_DIM]], out: StepOut<'_>) {
         self.actors_for(fleet.len());
         let (policy, stochastic) = (&self.policy, self.stochastic);
         fleet.decide_and_step(
-            self.actors.iter_mut(),
-            &|i, actor| actor.sample(policy, stochastic, &obs[i]).0,
-            infos,
-            next_obs,
+            self.actors.iter_mut().zip(out.actions.iter_mut()),
+            &|i, (actor, action)| {
+                *action = actor.sample(policy, stochastic, &obs[i]).0;
+                *action
+            },
+            out.infos,
+            out.next_obs,
         );
     }
 }

@@ -206,12 +206,8 @@ mod tests {
     /// The transitions of `ticks` steps of 2 flat and 2 rough envs under one stochastic
     /// policy, on `threads` sim threads.
     fn record(threads: usize, ticks: usize) -> Vec<Transition> {
-        let cfg = SimConfig {
-            flat_envs: 2,
-            rough_envs: 2,
-            threads,
-            ..SimConfig::default()
-        };
+        let mut cfg = SimConfig::default();
+        (cfg.flat_envs, cfg.rough_envs, cfg.threads) = (2, 2, threads);
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut fleet = Fleet::new(&cfg, &terrain, 9);
         let layout = PolicyLayout::new(OBS_DIM, &[16], ACT_DIM);

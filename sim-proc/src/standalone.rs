@@ -2,14 +2,14 @@
 //! with no other process involved.
 
 use crate::Fleet;
-use crate::controllers::Controller;
+use crate::controllers::{Controller, StepOut};
 use crate::env::{SharedTerrain, StepInfo};
 use crate::task::Ending;
 use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::terrain::Terrain;
 use anyhow::Context;
 use common::episode::EpisodeStats;
-use common::{Config, OBS_DIM, TelemetryRow};
+use common::{ACT_DIM, Config, OBS_DIM, TelemetryRow};
 use std::path::Path;
 
 /// What `--json` writes. The time covers stepping only (not building the terrain), so it
@@ -50,11 +50,17 @@ pub fn drive(
     let n = fleet.len();
     let mut obs = vec![[0.0f32; OBS_DIM]; n];
     let mut next = vec![[0.0f32; OBS_DIM]; n];
+    let mut actions = vec![[0.0f32; ACT_DIM]; n];
     let mut infos = vec![StepInfo::default(); n];
     fleet.observe(&mut obs);
     let mut s = Summary::default();
     for _ in 0..steps {
-        controller.step(fleet, &obs, &mut infos, &mut next);
+        let out = StepOut {
+            actions: &mut actions,
+            infos: &mut infos,
+            next_obs: &mut next,
+        };
+        controller.step(fleet, &obs, out);
         std::mem::swap(&mut obs, &mut next);
         for (i, env) in fleet.envs.iter().enumerate() {
             let info = &infos[i];
