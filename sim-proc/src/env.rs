@@ -2,7 +2,7 @@
 //! episode bookkeeping, and the observation (SPEC S3–S5).
 
 use crate::attitude::Sensing;
-use crate::robot::{self, Robot, TERRAIN_GROUP};
+use crate::robot::{self, Drive, Robot, TERRAIN_GROUP};
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
 use common::config::{AreaKind, AttitudeSource, EpisodeStart, Rect, SimConfig, TerrainCollider};
@@ -178,10 +178,9 @@ impl Env {
 
     /// World positions of the two wheel centres (left, right).
     pub fn wheel_centres(&self) -> [[f64; 3]; 2] {
-        self.robot.wheel_bodies.map(|b| {
-            let t = self.world.bodies[b].translation();
-            [f64::from(t.x), f64::from(t.y), f64::from(t.z)]
-        })
+        self.robot
+            .wheel_centres(&self.world)
+            .map(|t| [f64::from(t.x), f64::from(t.y), f64::from(t.z)])
     }
 
     /// The last clipped wheel command, rad/s.
@@ -302,12 +301,12 @@ impl Env {
     /// quarantines the bodies. A panic inside rapier on a degenerate state is caught as well
     /// (the multibody wheels the robot first had did panic so); either way only this env's
     /// world is lost, and the caller respawns it.
-    fn physics_substeps(&mut self) -> bool {
+    fn physics_substeps(&mut self, drive: &Drive) -> bool {
         let (world, sensing) = (&mut self.world, &mut self.sensing);
         let (substeps, dt, chassis) = (self.cfg.substeps, self.cfg.physics_dt, self.robot.chassis);
         let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             for _ in 0..substeps {
-                world.step();
+                world.step_with_events(drive, &());
                 if !world.quarantine().is_empty() {
                     return false;
                 }
@@ -331,9 +330,11 @@ impl Env {
                 0.0
             }
         });
-        robot::set_wheel_speeds(&mut self.world, &self.robot, &self.cfg.robot, self.action);
+        let drive = self
+            .robot
+            .command(&mut self.world, &self.cfg.robot, self.action);
         self.contact_ground();
-        let healthy = self.physics_substeps();
+        let healthy = self.physics_substeps(&drive);
         self.tick += 1;
         let p = self.pose();
         let result = if healthy && p.is_finite() {

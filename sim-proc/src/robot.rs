@@ -1,15 +1,19 @@
 //! The two-wheeled differential robot in one rapier world (SPEC S2).
 //!
 //! Body frame: X through the wheel axle (the left wheel at +X), Y up, Z forward. The chassis
-//! body's origin is the axle's midpoint. Each wheel is a body on a revolute impulse joint about
-//! X with a velocity motor; a passive low-friction ball (skid) under the rear keeps it level.
+//! body's origin is the axle's midpoint. A passive low-friction ball (skid) under the rear
+//! keeps it level. The wheels come in two models (`sim.robot.wheel-model`):
 //!
-//! Impulse joints, not a multibody: rapier rebuilds a multibody's dense mass matrix every
-//! solver substep, which took 60 % of a rough-ground step and doubled its cost. The price is
-//! a little joint compliance: wheel and chassis part by 0.3 mm at rest and by under 2 mm on
-//! hard landings on rough ground; the physics tests hold with either.
-
-use common::config::{RobotConfig, WheelShape};
+//! - `joint`: each wheel is a body on a revolute impulse joint about X with a velocity motor.
+//!   Impulse joints, not a multibody: rapier rebuilds a multibody's dense mass matrix every
+//!   solver substep, which took 60 % of a rough-ground step and doubled its cost. The price is
+//!   a little joint compliance: wheel and chassis part by 0.3 mm at rest and by under 2 mm on
+//!   hard landings on rough ground; the physics tests hold with either.
+//! - `contact`: each wheel is a collider on the chassis, and the physics hook [`Drive`] gives
+//!   its ground contacts the surface velocity a wheel turning at the command would have, so
+//!   friction pushes the robot as a rolling wheel does. One body per robot and no joints; the
+//!   wheels have no inertia of their own and no torque limit (friction is the only limit).
+use common::config::{RobotConfig, WheelModel, WheelShape};
 use rapier3d::prelude::*;
 
 /// Collision group of the terrain; robot parts collide with it only, never with each other.
@@ -36,10 +40,10 @@ pub fn caster_offset(cfg: &RobotConfig) -> [f64; 3] {
 #[derive(Debug, Clone, Copy)]
 pub struct Robot {
     pub chassis: RigidBodyHandle,
-    /// Wheel joints, left (+X) then right (−X).
-    pub wheels: [ImpulseJointHandle; 2],
-    /// Wheel bodies, same order.
-    pub wheel_bodies: [RigidBodyHandle; 2],
+    /// Wheel colliders, left (+X) then right (−X).
+    wheels: [ColliderHandle; 2],
+    /// The wheels' motorised joints, same order (`joint` model only).
+    joints: Option<[ImpulseJointHandle; 2]>,
 }
 
 fn v3(a: [f64; 3]) -> Vector {
@@ -68,55 +72,110 @@ pub fn build(world: &mut PhysicsWorld, cfg: &RobotConfig, pose: Pose) -> Robot {
     world.insert_collider(caster, Some(chassis));
 
     let half_track = 0.5 * cfg.track_width;
-    let mut wheel_bodies = [chassis; 2];
+    let mut joints = [ImpulseJointHandle::invalid(); 2];
     let wheels = [0, 1].map(|side| {
         let x = if side == 0 { half_track } else { -half_track };
         let anchor = v3([x, 0.0, 0.0]);
-        let wheel = world.insert_body(
-            RigidBodyBuilder::dynamic()
-                .pose(pose * Pose::from_translation(anchor))
-                .can_sleep(false),
-        );
-        wheel_bodies[side] = wheel;
         let r = cfg.wheel_radius as f32;
         let shape = match cfg.wheel_shape {
             WheelShape::Ball => ColliderBuilder::ball(r),
             // parry's cylinders stand on Y: turn the axis onto X.
             WheelShape::Cylinder => ColliderBuilder::cylinder(0.5 * cfg.wheel_width as f32, r)
                 .rotation(Vector::new(0.0, 0.0, std::f32::consts::FRAC_PI_2)),
-        };
-        world.insert_collider(
-            shape
-                .mass(cfg.wheel_mass as f32)
-                .friction(cfg.wheel_friction as f32)
-                .collision_groups(robot_groups()),
-            Some(wheel),
-        );
-        let joint = RevoluteJointBuilder::new(Vector::X)
-            .local_anchor1(anchor)
-            .local_anchor2(Vector::ZERO)
-            .motor_velocity(0.0, cfg.motor_damping as f32)
-            .motor_max_force(cfg.motor_max_torque as f32);
-        world.insert_impulse_joint(chassis, wheel, joint)
+        }
+        .mass(cfg.wheel_mass as f32)
+        .friction(cfg.wheel_friction as f32)
+        .collision_groups(robot_groups());
+        match cfg.wheel_model {
+            WheelModel::Contact => world.insert_collider(
+                shape
+                    .translation(anchor)
+                    .active_hooks(ActiveHooks::MODIFY_SOLVER_CONTACTS),
+                Some(chassis),
+            ),
+            WheelModel::Joint => {
+                let wheel = world.insert_body(
+                    RigidBodyBuilder::dynamic()
+                        .pose(pose * Pose::from_translation(anchor))
+                        .can_sleep(false),
+                );
+                let joint = RevoluteJointBuilder::new(Vector::X)
+                    .local_anchor1(anchor)
+                    .local_anchor2(Vector::ZERO)
+                    .motor_velocity(0.0, cfg.motor_damping as f32)
+                    .motor_max_force(cfg.motor_max_torque as f32);
+                joints[side] = world.insert_impulse_joint(chassis, wheel, joint);
+                world.insert_collider(shape, Some(wheel))
+            }
+        }
     });
     Robot {
         chassis,
         wheels,
-        wheel_bodies,
+        joints: (cfg.wheel_model == WheelModel::Joint).then_some(joints),
     }
 }
 
-/// Sets both wheels' target angular velocity (rad/s, already clipped).
-pub fn set_wheel_speeds(
-    world: &mut PhysicsWorld,
-    robot: &Robot,
-    cfg: &RobotConfig,
+impl Robot {
+    /// World positions of the two wheel centres (left, right).
+    pub fn wheel_centres(&self, world: &PhysicsWorld) -> [Vector; 2] {
+        self.wheels.map(|h| world.colliders[h].translation())
+    }
+
+    /// Commands both wheels' angular velocity (rad/s, already clipped) and returns the hook
+    /// the physics steps until the next command run with. `joint` wheels take the command
+    /// as their motors' target; `contact` wheels through the returned [`Drive`].
+    pub fn command(&self, world: &mut PhysicsWorld, cfg: &RobotConfig, speeds: [f32; 2]) -> Drive {
+        for (handle, speed) in self.joints.iter().flatten().zip(speeds) {
+            if let Some(j) = world.impulse_joints.get_mut(*handle, false) {
+                j.data
+                    .set_motor_velocity(JointAxis::AngX, speed, cfg.motor_damping as f32);
+            }
+        }
+        Drive {
+            chassis: self.chassis,
+            wheels: self.wheels,
+            speeds,
+        }
+    }
+}
+
+/// The physics hook of `contact` wheels: each solver contact of a wheel with the ground gets
+/// the velocity of that point of a wheel spinning at the command about the axle, relative to
+/// the chassis. The solver then drives the contact's tangential slip to that velocity, within
+/// the friction cone, as it would drive a turning wheel's contact point to rest on the ground.
+/// Joint wheels carry no hook flag, so rapier never calls it for them.
+pub struct Drive {
+    chassis: RigidBodyHandle,
+    wheels: [ColliderHandle; 2],
     speeds: [f32; 2],
-) {
-    for (handle, speed) in robot.wheels.iter().zip(speeds) {
-        if let Some(j) = world.impulse_joints.get_mut(*handle, false) {
-            j.data
-                .set_motor_velocity(JointAxis::AngX, speed, cfg.motor_damping as f32);
+}
+
+impl PhysicsHooks for Drive {
+    fn modify_solver_contacts(&self, ctx: &mut ContactModificationContext) {
+        // The solver drives (v1 − v2)·t to −tangent_velocity·t: with the wheel first, the
+        // tangent velocity is the surface velocity; with the wheel second, its negative.
+        let Some((side, sign)) = (0..2).find_map(|side| {
+            let h = self.wheels[side];
+            (h == ctx.collider1)
+                .then_some((side, 1.0))
+                .or((h == ctx.collider2).then_some((side, -1.0)))
+        }) else {
+            return;
+        };
+        let axis = *ctx.bodies[self.chassis].rotation() * Vector::X;
+        let spin = axis * (sign * self.speeds[side]);
+        let centre = ctx.colliders[self.wheels[side]].translation();
+        let Some(manifold) = ctx.rigid_mut() else {
+            return;
+        };
+        for contact in manifold.solver_contacts.iter_mut() {
+            let point = if sign > 0.0 {
+                contact.anchor1
+            } else {
+                contact.anchor2
+            };
+            contact.tangent_velocity = spin.cross(point - centre);
         }
     }
 }

@@ -1,17 +1,19 @@
 //! Physics scene tests: the robot against physical expectations (SPEC S2), and the
 //! simulator's determinism and fault handling.
 
-use common::config::{AreaKind, SimConfig, TerrainConfig};
+use common::config::{AreaKind, SimConfig, TerrainConfig, WheelModel};
 use sim_proc::controllers::{GoToController, RandomController};
 use sim_proc::env::{SharedTerrain, build_world, unity_euler};
-use sim_proc::robot;
 use sim_proc::standalone::drive;
 use sim_proc::terrain::Terrain;
 use sim_proc::{Env, Fleet};
 
-/// A perfectly flat floor: no micro-relief, no bumps.
-fn plane() -> (SimConfig, SharedTerrain) {
-    let cfg = SimConfig {
+/// Both ways a wheel can drive; every scene below holds for each.
+const WHEELS: [WheelModel; 2] = [WheelModel::Joint, WheelModel::Contact];
+
+/// A perfectly flat floor: no micro-relief, no bumps; robots with `wheels`.
+fn plane(wheels: WheelModel) -> (SimConfig, SharedTerrain) {
+    let mut cfg = SimConfig {
         terrain: TerrainConfig {
             flat_relief: 0.0,
             rough_amplitude: 0.0,
@@ -19,23 +21,30 @@ fn plane() -> (SimConfig, SharedTerrain) {
         },
         ..SimConfig::default()
     };
+    cfg.robot.wheel_model = wheels;
     let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
     (cfg, terrain)
 }
 
 /// Drives a robot placed at (-1, -0.25) facing +Z with constant wheel speeds and returns the
 /// chassis pose after every physics step.
-fn drive_const(speeds: [f32; 2], settle_s: f64, drive_s: f64) -> Vec<(glam::Vec3, glam::Quat)> {
-    let (cfg, terrain) = plane();
+fn drive_const(
+    wheels: WheelModel,
+    speeds: [f32; 2],
+    settle_s: f64,
+    drive_s: f64,
+) -> Vec<(glam::Vec3, glam::Quat)> {
+    let (cfg, terrain) = plane(wheels);
     let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0, AreaKind::Flat);
     let steps = |s: f64| (s / cfg.physics_dt).round() as usize;
+    let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
     for _ in 0..steps(settle_s) {
-        world.step();
+        world.step_with_events(&held, &());
     }
-    robot::set_wheel_speeds(&mut world, &robot, &cfg.robot, speeds);
+    let drive = robot.command(&mut world, &cfg.robot, speeds);
     let mut poses = Vec::new();
     for _ in 0..steps(drive_s) {
-        world.step();
+        world.step_with_events(&drive, &());
         let b = &world.bodies[robot.chassis];
         poses.push((b.translation(), *b.rotation()));
     }
@@ -44,54 +53,52 @@ fn drive_const(speeds: [f32; 2], settle_s: f64, drive_s: f64) -> Vec<(glam::Vec3
 
 #[test]
 fn rests_at_the_geometric_height_on_flat_ground() {
-    let poses = drive_const([0.0, 0.0], 2.0, 0.5);
-    let (p, q) = poses[poses.len() - 1];
-    // The axle (the chassis origin) rests one wheel radius above the plane.
-    let want = SimConfig::default().robot.wheel_radius as f32;
-    assert!(
-        (p.y - want).abs() < 0.002,
-        "axle at {} m, expected {want} m",
-        p.y
-    );
-    // Level: the skid's bottom is level with the wheels'.
-    let [pitch, _, roll] = unity_euler(q);
-    assert!(
-        pitch.abs() < 0.01 && roll.abs() < 0.01,
-        "pitch {pitch} roll {roll}"
-    );
+    for wheels in WHEELS {
+        let poses = drive_const(wheels, [0.0, 0.0], 2.0, 0.5);
+        let (p, q) = poses[poses.len() - 1];
+        // The axle (the chassis origin) rests one wheel radius above the plane.
+        let want = SimConfig::default().robot.wheel_radius as f32;
+        assert!(
+            (p.y - want).abs() < 0.002,
+            "{wheels:?}: axle at {} m, expected {want} m",
+            p.y
+        );
+        // Level: the skid's bottom is level with the wheels'.
+        let [pitch, _, roll] = unity_euler(q);
+        assert!(
+            pitch.abs() < 0.01 && roll.abs() < 0.01,
+            "{wheels:?}: pitch {pitch} roll {roll}"
+        );
+    }
 }
 
 #[test]
 fn equal_commands_drive_straight_at_omega_r() {
     let omega = 3.0f32;
     let t = 5.0;
-    let poses = drive_const([omega, omega], 1.0, t);
-    let (start, end) = (poses[0].0, poses[poses.len() - 1].0);
     let r = SimConfig::default().robot.wheel_radius as f32;
     let expected = omega * r * t as f32;
-    let along = end.z - start.z;
-    assert!(
-        (along - expected).abs() < 0.05 * expected,
-        "travelled {along} m, ω·r·t = {expected} m"
-    );
-    assert!(
-        (end.x - start.x).abs() < 0.02,
-        "lateral drift {} m",
-        end.x - start.x
-    );
+    for wheels in WHEELS {
+        let poses = drive_const(wheels, [omega, omega], 1.0, t);
+        let (start, end) = (poses[0].0, poses[poses.len() - 1].0);
+        let along = end.z - start.z;
+        assert!(
+            (along - expected).abs() < 0.05 * expected,
+            "{wheels:?}: travelled {along} m, ω·r·t = {expected} m"
+        );
+        assert!(
+            (end.x - start.x).abs() < 0.02,
+            "{wheels:?}: lateral drift {} m",
+            end.x - start.x
+        );
+    }
 }
 
-#[test]
-fn opposite_commands_turn_at_the_kinematic_yaw_rate() {
-    let omega = 2.0f32;
-    let poses = drive_const([-omega, omega], 1.0, 3.0);
-    let cfg = SimConfig::default().robot;
-    // Right wheel forward, left backward: yaw rate 2·ω·r / track, counter-clockwise about +Y.
-    let expected = 2.0 * f64::from(omega) * cfg.wheel_radius / cfg.track_width;
-    // Unwrap the yaw over the last 2 s (skip 1 s of spin-up).
+/// The mean yaw rate (rad/s) over the poses after the first `skip_s` seconds.
+fn yaw_rate(poses: &[(glam::Vec3, glam::Quat)], skip_s: f64) -> f64 {
     let dt = SimConfig::default().physics_dt;
     let yaws: Vec<f64> = poses.iter().map(|(_, q)| unity_euler(*q)[1]).collect();
-    let from = (1.0 / dt) as usize;
+    let from = (skip_s / dt) as usize;
     let mut turned = 0.0;
     for w in yaws[from..].windows(2) {
         let mut d = w[1] - w[0];
@@ -102,11 +109,23 @@ fn opposite_commands_turn_at_the_kinematic_yaw_rate() {
         }
         turned += d;
     }
-    let rate = turned / ((yaws.len() - 1 - from) as f64 * dt);
-    assert!(
-        (rate - expected).abs() < 0.1 * expected,
-        "yaw rate {rate} rad/s, kinematic {expected} rad/s"
-    );
+    turned / ((yaws.len() - 1 - from) as f64 * dt)
+}
+
+#[test]
+fn opposite_commands_turn_at_the_kinematic_yaw_rate() {
+    let omega = 2.0f32;
+    let cfg = SimConfig::default().robot;
+    // Right wheel forward, left backward: yaw rate 2·ω·r / track, counter-clockwise about +Y.
+    let expected = 2.0 * f64::from(omega) * cfg.wheel_radius / cfg.track_width;
+    for wheels in WHEELS {
+        // Skip 1 s of spin-up.
+        let rate = yaw_rate(&drive_const(wheels, [-omega, omega], 1.0, 3.0), 1.0);
+        assert!(
+            (rate - expected).abs() < 0.1 * expected,
+            "{wheels:?}: yaw rate {rate} rad/s, kinematic {expected} rad/s"
+        );
+    }
 }
 
 fn rough_cfg(envs: usize) -> SimConfig {

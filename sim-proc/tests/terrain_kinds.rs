@@ -2,13 +2,13 @@
 //! down a slope whose friction is below what its incline needs, and gravel shakes the chassis
 //! at higher frequencies than rough ground.
 
-use common::config::{Area, AreaKind, SimConfig, TerrainConfig};
+use common::config::{Area, AreaKind, SimConfig, TerrainConfig, WheelModel};
 use sim_proc::env::{SharedTerrain, build_world};
-use sim_proc::robot;
 use sim_proc::terrain::Terrain;
 
-/// A world with one slope area, x ∈ [0, 2], z ∈ [0, 2], of `incline_deg` and `friction`.
-fn slope(incline_deg: f64, friction: f64) -> (SimConfig, SharedTerrain) {
+/// A world with one slope area, x ∈ [0, 2], z ∈ [0, 2], of `incline_deg` and `friction`, and
+/// robots with `wheels`.
+fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, SharedTerrain) {
     let mut terrain = TerrainConfig {
         areas: vec![Area {
             kind: AreaKind::Slope,
@@ -25,29 +25,30 @@ fn slope(incline_deg: f64, friction: f64) -> (SimConfig, SharedTerrain) {
     };
     terrain.slope.incline_deg = incline_deg;
     terrain.slope.friction = friction;
-    let cfg = SimConfig {
+    let mut cfg = SimConfig {
         flat_envs: 0,
         slope_envs: 1,
         terrain,
         ..SimConfig::default()
     };
+    cfg.robot.wheel_model = wheels;
     let shared = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
     (cfg, shared)
 }
 
-/// How far (metres, along −X: downhill) a robot parked with its wheels held still on the
-/// slope's western face, facing downhill, moves in `seconds`.
-fn parked_slide(incline_deg: f64, friction: f64, yaw: f64, seconds: f64) -> f64 {
-    let (cfg, terrain) = slope(incline_deg, friction);
-    let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], yaw, AreaKind::Slope);
-    robot::set_wheel_speeds(&mut world, &robot, &cfg.robot, [0.0, 0.0]);
+/// How far (metres, along −X: downhill) a robot with `wheels`, parked with them held still
+/// on the slope's western face, facing across it, moves in `seconds`.
+fn parked_slide(friction: f64, wheels: WheelModel, seconds: f64) -> f64 {
+    let (cfg, terrain) = slope(12.0, friction, wheels);
+    let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], 0.0, AreaKind::Slope);
+    let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
     // Let the drop settle before measuring.
     for _ in 0..25 {
-        world.step();
+        world.step_with_events(&held, &());
     }
     let x0 = world.bodies[robot.chassis].translation().x;
     for _ in 0..(seconds / cfg.physics_dt).round() as usize {
-        world.step();
+        world.step_with_events(&held, &());
     }
     f64::from(x0 - world.bodies[robot.chassis].translation().x)
 }
@@ -56,10 +57,18 @@ fn parked_slide(incline_deg: f64, friction: f64, yaw: f64, seconds: f64) -> f64 
 fn a_robot_parked_across_a_slope_slides_at_low_friction_and_holds_at_one() {
     // Across the slope the wheels cannot roll downhill: only friction holds the robot. At 12°
     // it needs μ ≥ tan 12° ≈ 0.21 on every contact, and the skid has 0.05.
-    let slid = parked_slide(12.0, 0.3, 0.0, 2.0);
-    let held = parked_slide(12.0, 1.0, 0.0, 2.0);
-    assert!(slid > 0.2, "at μ = 0.3 it moved {slid} m downhill in 2 s");
-    assert!(held.abs() < 0.02, "at μ = 1 it moved {held} m in 2 s");
+    for wheels in [WheelModel::Joint, WheelModel::Contact] {
+        let slid = parked_slide(0.3, wheels, 2.0);
+        let held = parked_slide(1.0, wheels, 2.0);
+        assert!(
+            slid > 0.2,
+            "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s"
+        );
+        assert!(
+            held.abs() < 0.02,
+            "{wheels:?}: at μ = 1 it moved {held} m in 2 s"
+        );
+    }
 }
 
 /// Four areas side by side and the go-to-target controller on each; a 1 cm grid resolves the

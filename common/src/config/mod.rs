@@ -29,7 +29,7 @@ pub use model_file::{OfflineKinds, OfflineMixture};
 pub use net::{MIN_KEY_BYTES, NetConfig};
 pub use ppo::{PpoConfig, PpoEngine};
 pub use reproduce::ReproduceConfig;
-pub use robot::{RobotConfig, WheelShape};
+pub use robot::{RobotConfig, WheelModel, WheelShape};
 pub use run::{Acting, LearnMode, PolicySlot, RunConfig};
 pub use sim::{AreaKind, Rect, SimConfig};
 pub use supervise::{Restart, RestartPolicy, SuperviseConfig};

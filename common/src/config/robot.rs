@@ -12,6 +12,17 @@ pub enum WheelShape {
     Cylinder,
 }
 
+/// How a wheel turns the robot's motion into ground contact.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum WheelModel {
+    /// Each wheel a body on a revolute joint with a velocity motor (torque-limited).
+    Joint,
+    /// Wheels fixed to the chassis whose ground contacts move at the commanded surface speed:
+    /// no wheel bodies or joints, no wheel inertia and no torque limit (DESIGN §10).
+    Contact,
+}
+
 /// The two-wheeled differential robot (SPEC S2).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
@@ -24,6 +35,8 @@ pub struct RobotConfig {
     pub track_width: f64,
     /// Wheel collider shape. Default `ball`.
     pub wheel_shape: WheelShape,
+    /// How the wheels drive: `joint` (motorised wheel bodies) or `contact` (surface speed on the ground contacts). Default `joint`.
+    pub wheel_model: WheelModel,
     /// Chassis box half extents (x across, y up, z along), metres. Default [0.035, 0.015, 0.05].
     pub chassis_half_extents: [f64; 3],
     /// Chassis mass, kg. (0, 100]. Default 0.30.
@@ -56,6 +69,7 @@ impl Default for RobotConfig {
             wheel_width: 0.015,
             track_width: 0.10,
             wheel_shape: WheelShape::Ball,
+            wheel_model: WheelModel::Joint,
             chassis_half_extents: [0.035, 0.015, 0.05],
             chassis_mass: 0.30,
             wheel_mass: 0.03,
