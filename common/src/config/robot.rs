@@ -35,7 +35,8 @@ pub struct RobotConfig {
     pub track_width: f64,
     /// Wheel collider shape. Default `ball`.
     pub wheel_shape: WheelShape,
-    /// How the wheels drive: `joint` (motorised wheel bodies) or `contact` (surface speed on the ground contacts). Default `joint`.
+    /// How the wheels drive: `joint` (motorised wheel bodies) or `contact` (the ground
+    /// contacts move at the wheels' surface speed). Default `joint`.
     pub wheel_model: WheelModel,
     /// Chassis box half extents (x across, y up, z along), metres. Default [0.035, 0.015, 0.05].
     pub chassis_half_extents: [f64; 3],
