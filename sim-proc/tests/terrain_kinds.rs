@@ -36,21 +36,26 @@ fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, Sha
     (cfg, shared)
 }
 
-/// How far (metres, along −X: downhill) a robot with `wheels`, parked with them held still
-/// on the slope's western face, facing across it, moves in `seconds`.
-fn parked_slide(friction: f64, wheels: WheelModel, seconds: f64) -> f64 {
-    let (cfg, terrain) = slope(12.0, friction, wheels);
-    let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], 0.0, AreaKind::Slope);
+/// How far (metres, along +X: uphill) a robot with `wheels`, dropped on the slope's western
+/// face facing `yaw` and settled with its wheels held still, moves in `seconds` with both
+/// wheels at `command`.
+fn slope_travel(friction: f64, wheels: WheelModel, yaw: f64, command: f32, seconds: f64) -> f64 {
+    let (mut cfg, terrain) = slope(12.0, friction, wheels);
+    // A motor whose gain lets the torque limit bound the push; the default gain stalls on a
+    // slope (docs/RESULTS.md, R31).
+    cfg.robot.motor_damping = 1e5;
+    let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], yaw, AreaKind::Slope);
     let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
     // Let the drop settle before measuring.
     for _ in 0..25 {
         world.step_with_events(&held, &());
     }
     let x0 = world.bodies[robot.chassis].translation().x;
+    let drive = robot.command(&mut world, &cfg.robot, [command; 2]);
     for _ in 0..(seconds / cfg.physics_dt).round() as usize {
-        world.step_with_events(&held, &());
+        world.step_with_events(&drive, &());
     }
-    f64::from(x0 - world.bodies[robot.chassis].translation().x)
+    f64::from(world.bodies[robot.chassis].translation().x - x0)
 }
 
 #[test]
@@ -58,16 +63,29 @@ fn a_robot_parked_across_a_slope_slides_at_low_friction_and_holds_at_one() {
     // Across the slope the wheels cannot roll downhill: only friction holds the robot. At 12°
     // it needs μ ≥ tan 12° ≈ 0.21 on every contact, and the skid has 0.05.
     for wheels in [WheelModel::Joint, WheelModel::Contact] {
-        let slid = parked_slide(0.3, wheels, 2.0);
-        let held = parked_slide(1.0, wheels, 2.0);
-        assert!(
-            slid > 0.2,
-            "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s"
-        );
-        assert!(
-            held.abs() < 0.02,
-            "{wheels:?}: at μ = 1 it moved {held} m in 2 s"
-        );
+        let slid = -slope_travel(0.3, wheels, 0.0, 0.0, 2.0);
+        let held = -slope_travel(1.0, wheels, 0.0, 0.0, 2.0);
+        assert!(slid > 0.2, "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s");
+        assert!(held.abs() < 0.02, "{wheels:?}: at μ = 1 it moved {held} m in 2 s");
+    }
+}
+
+#[test]
+fn a_robot_facing_up_a_slope_climbs_at_omega_r() {
+    // Facing uphill (+X) on the 12° face at μ = 0.5: the climb needs about
+    // m·g·sin 12°·r / 2 ≈ 0.013 N·m from each wheel, well inside the motors' 0.1 N·m, and
+    // grip μ ≥ tan 12° ≈ 0.21, so the wheels should roll at the command from rest.
+    let r = SimConfig::default().robot.wheel_radius;
+    let (seconds, incline) = (3.0, 12f64.to_radians());
+    for wheels in [WheelModel::Joint, WheelModel::Contact] {
+        for command in [1.0f32, 3.0] {
+            let climbed = slope_travel(0.5, wheels, std::f64::consts::FRAC_PI_2, command, seconds);
+            let want = f64::from(command) * r * seconds * incline.cos();
+            assert!(
+                (climbed - want).abs() < 0.1 * want,
+                "{wheels:?} at {command} rad/s: climbed {climbed} m along X, ω·r·t·cos 12° = {want} m"
+            );
+        }
     }
 }
 

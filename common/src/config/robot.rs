@@ -52,8 +52,9 @@ pub struct RobotConfig {
     pub caster_friction: f64,
     /// Wheel motor torque limit, N·m. (0, 10]. Default 0.1.
     pub motor_max_torque: f64,
-    /// Velocity motor gain (rapier acceleration-based damping; higher tracks the command more
-    /// stiffly: 1000 reaches 98 % of the commanded speed on flat ground). (0, 10^6]. Default 1000.
+    /// Velocity motor gain of `joint` wheels (rapier acceleration-based damping, scaled by the
+    /// wheel's own small inertia): 1000 reaches 98 % of the commanded speed on flat ground but
+    /// stalls at 1 rad/s on a 12° slope; 10^5 climbs at it (docs/RESULTS.md, R31). (0, 10^6]. Default 1000.
     pub motor_damping: f64,
     /// Action clip: each wheel command in [-limit, limit] rad/s (SPEC S2). (0, 100]. Default 3.0.
     pub action_limit: f64,
