@@ -65,8 +65,14 @@ fn a_robot_parked_across_a_slope_slides_at_low_friction_and_holds_at_one() {
     for wheels in [WheelModel::Joint, WheelModel::Contact] {
         let slid = -slope_travel(0.3, wheels, 0.0, 0.0, 2.0);
         let held = -slope_travel(1.0, wheels, 0.0, 0.0, 2.0);
-        assert!(slid > 0.2, "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s");
-        assert!(held.abs() < 0.02, "{wheels:?}: at μ = 1 it moved {held} m in 2 s");
+        assert!(
+            slid > 0.2,
+            "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s"
+        );
+        assert!(
+            held.abs() < 0.02,
+            "{wheels:?}: at μ = 1 it moved {held} m in 2 s"
+        );
     }
 }
 
