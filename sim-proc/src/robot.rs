@@ -13,6 +13,7 @@
 //!   its ground contacts the surface velocity a wheel turning at the command would have, so
 //!   friction pushes the robot as a rolling wheel does. One body per robot and no joints; the
 //!   wheels have no inertia of their own and no torque limit (friction is the only limit).
+
 use common::config::{RobotConfig, WheelModel, WheelShape};
 use rapier3d::prelude::*;
 
