@@ -586,9 +586,12 @@ mod tests {
             (TerrainCollider::Trimesh, false, ShapeType::TriMesh),
             (TerrainCollider::Heightfield, true, ShapeType::HeightField),
         ] {
+            // 8 robots for 1,500 ticks: about 380 targets, so a count differs by a few
+            // percent between steppings (the IMU's runs 2-5 % slower), not by the 10 % a
+            // sample of 4 robots can stray.
             let mut cfg = SimConfig {
                 flat_envs: 0,
-                rough_envs: 4,
+                rough_envs: 8,
                 threads: 1,
                 ..SimConfig::default()
             };
@@ -611,13 +614,13 @@ mod tests {
                 .find(|(_, c)| c.parent().is_none());
             assert_eq!(ground.map(|(_, c)| c.shape().shape_type()), Some(kind));
             let mut goto = GoToController::new(cfg.robot.action_limit);
-            let s =
-                crate::standalone::drive(&mut fleet, &mut goto, 750, |_, _| Ok(())).expect("drive");
+            let s = crate::standalone::drive(&mut fleet, &mut goto, 1500, |_, _| Ok(()))
+                .expect("drive");
             assert_eq!(s.faults, 0);
             reached.push(s.episodes.successes as f64);
         }
         // The same ground under the same controller: about as many targets reached.
-        assert!(reached[0] >= 50.0, "{reached:?}");
+        assert!(reached[0] >= 200.0, "{reached:?}");
         for r in &reached[1..] {
             assert!((r / reached[0] - 1.0).abs() < 0.1, "{reached:?}");
         }

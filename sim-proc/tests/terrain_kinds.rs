@@ -40,10 +40,7 @@ fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, Sha
 /// face facing `yaw` and settled with its wheels held still, moves in `seconds` with both
 /// wheels at `command`.
 fn slope_travel(friction: f64, wheels: WheelModel, yaw: f64, command: f32, seconds: f64) -> f64 {
-    let (mut cfg, terrain) = slope(12.0, friction, wheels);
-    // A motor whose gain lets the torque limit bound the push; the default gain stalls on a
-    // slope (docs/RESULTS.md, R31).
-    cfg.robot.motor_damping = 1e5;
+    let (cfg, terrain) = slope(12.0, friction, wheels);
     let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], yaw, AreaKind::Slope);
     let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
     // Let the drop settle before measuring.

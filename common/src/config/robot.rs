@@ -53,8 +53,8 @@ pub struct RobotConfig {
     /// Wheel motor torque limit, N·m. (0, 10]. Default 0.1.
     pub motor_max_torque: f64,
     /// Velocity motor gain of `joint` wheels (rapier acceleration-based damping, scaled by the
-    /// wheel's own small inertia): 1000 reaches 98 % of the commanded speed on flat ground but
-    /// stalls at 1 rad/s on a 12° slope; 10^5 climbs at it (docs/RESULTS.md, R31). (0, 10^6]. Default 1000.
+    /// wheel's own small inertia): at 10^5 the torque limit bounds the push and a robot climbs
+    /// 12° at its command; 1000 stalls there at 1 rad/s (docs/RESULTS.md, R31). (0, 10^6]. Default 10^5.
     pub motor_damping: f64,
     /// Action clip: each wheel command in [-limit, limit] rad/s (SPEC S2). (0, 100]. Default 3.0.
     pub action_limit: f64,
@@ -79,7 +79,7 @@ impl Default for RobotConfig {
             wheel_friction: 1.0,
             caster_friction: 0.05,
             motor_max_torque: 0.1,
-            motor_damping: 1000.0,
+            motor_damping: 1e5,
             action_limit: 3.0,
             length_unit: 0.2,
             solver_iterations: 6,
