@@ -127,10 +127,10 @@ mod tests {
         bad[3].env = 2;
         assert_eq!(chunk_refusal(&h, &bad), Some("env id out of range"));
         let mut bad = good.clone();
-        bad[0].slot = 5;
+        bad[0].slot = 6;
         assert_eq!(chunk_refusal(&h, &bad), Some("unknown policy slot"));
-        bad[0].slot = 4;
-        assert_eq!(chunk_refusal(&h, &bad), None, "the gravel slot");
+        bad[0].slot = 5;
+        assert_eq!(chunk_refusal(&h, &bad), None, "the sand slot");
         for poison in [f32::NAN, f32::INFINITY] {
             let mut bad = good.clone();
             bad[1].reward = poison;

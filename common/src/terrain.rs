@@ -1,9 +1,10 @@
 //! The lava-tube floor: a height grid covering every training area (SPEC S1's flat and rough,
-//! and the `slope` and `gravel` kinds) and the mixed course.
+//! and the `slope`, `gravel` and `sand` kinds) and the mixed course.
 //!
 //! Procedural by default (deterministic from `terrain.seed`): millimetre micro-relief
 //! everywhere, plus each kind's ground: multi-octave bumps on rough ground scaled by
-//! `roughness-scale`, small dense stones on gravel, a pyramid of the incline on a slope.
+//! `roughness-scale`, small dense stones on gravel, a pyramid of the incline on a slope,
+//! crossing ripples on sand.
 //! A measured heightmap (16-bit PNG or a plain `.grid` text file) can replace it.
 //! The grid is built once and shared by every env's physics world (sim-proc makes it a
 //! collider); the map and the Rerun recording draw the same grid.
@@ -43,7 +44,8 @@ impl Terrain {
 
     /// SPEC S1 (interpretation): a procedural floor covering every area and the mixed course
     /// plus a border, micro-relief everywhere, and each kind's ground in its area and its
-    /// mixed-course parts: bumps on rough ground, stones on gravel, a pyramid on a slope.
+    /// mixed-course parts: bumps on rough ground, stones on gravel, a pyramid on a slope,
+    /// ripples on sand.
     pub fn procedural(cfg: &TerrainConfig) -> Self {
         let areas: Vec<Rect> = cfg
             .areas
@@ -65,6 +67,7 @@ impl Terrain {
         let rough: Vec<Rect> = cfg.rects_of(AreaKind::Rough).collect();
         let gravel: Vec<Rect> = cfg.rects_of(AreaKind::Gravel).collect();
         let slopes: Vec<Rect> = cfg.rects_of(AreaKind::Slope).collect();
+        let sand: Vec<Rect> = cfg.rects_of(AreaKind::Sand).collect();
         let rough_peak = cfg.rough_amplitude * cfg.roughness_scale;
         let incline = cfg.slope.incline_deg.to_radians().tan();
         let mut heights = vec![0.0f32; rows * cols];
@@ -83,6 +86,10 @@ impl Terrain {
                 let w = blend_weight(&gravel, cfg.blend, x, z);
                 if w > 0.0 {
                     h += w * stones.height(x, z);
+                }
+                let w = blend_weight(&sand, cfg.blend, x, z);
+                if w > 0.0 {
+                    h += w * ripples(&cfg.sand, x, z);
                 }
                 let rise = slopes.iter().map(|r| inset(r, x, z)).fold(0.0, f64::max);
                 if rise > 0.0 {
@@ -221,6 +228,13 @@ fn edge_weight(r: &Rect, blend: f64, x: f64, z: f64) -> f64 {
     }
     let t = (1.0 - d / blend).clamp(0.0, 1.0);
     t * t * (3.0 - 2.0 * t)
+}
+
+/// Sand's ripples at `(x, z)`: two sine waves crossing at right angles, half the peak each,
+/// so a robot crosses crests at any heading.
+fn ripples(s: &crate::config::SandConfig, x: f64, z: f64) -> f64 {
+    let k = std::f64::consts::TAU / s.ripple_wavelength;
+    0.5 * s.ripple_amplitude * ((k * x).sin() + (k * z).sin())
 }
 
 /// Gravel: one stone per `spacing`-square cell, at a random spot in its cell's middle, of
@@ -561,6 +575,37 @@ mod tests {
         let (lg, lr) = (wavelength(&gravel), wavelength(&rough));
         assert!(lg < 2.0 * cfg.gravel.spacing, "gravel's wavelength {lg} m");
         assert!(lr > 3.0 * lg, "rough's {lr} m against gravel's {lg} m");
+    }
+
+    #[test]
+    fn sand_ripples_within_their_peak_at_their_wavelength() {
+        let mut cfg = four_kinds();
+        cfg.flat_relief = 0.0;
+        cfg.areas[0].kind = AreaKind::Sand;
+        let t = Terrain::procedural(&cfg);
+        let s = &cfg.sand;
+        // Along z = 0.5 (inside x ∈ [0, 1.5]) the z-wave is the constant ½A·sin(k·0.5): the
+        // x-wave's crests sit one wavelength apart, the surface never above the peak.
+        let zk =
+            0.5 * s.ripple_amplitude * (std::f64::consts::TAU * 0.5 / s.ripple_wavelength).sin();
+        let crest = 0.25 * s.ripple_wavelength;
+        for x in [crest, crest + s.ripple_wavelength] {
+            let want = 0.5 * s.ripple_amplitude + zk;
+            assert!(
+                (t.height_at(x, 0.5) - want).abs() < 2e-4,
+                "crest at x = {x}"
+            );
+        }
+        let trough = t.height_at(3.0 * crest, 0.5);
+        assert!(
+            (trough - (zk - 0.5 * s.ripple_amplitude)).abs() < 2e-4,
+            "{trough}"
+        );
+        assert!(
+            (0..150)
+                .all(|k| t.height_at(0.01 * f64::from(k), 0.7).abs() <= s.ripple_amplitude + 1e-6)
+        );
+        assert_eq!(cfg.friction_of(AreaKind::Sand), Some(s.friction));
     }
 
     #[test]

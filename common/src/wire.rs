@@ -160,10 +160,11 @@ pub const EVENT_FAULT: u8 = 8;
 /// One env at one tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
 #[repr(C)]
-#[type_name("lavatube.EnvTick.v3")]
+#[type_name("lavatube.EnvTick.v4")]
 pub struct EnvTick {
     pub env: u32,
-    /// True terrain under the robot (`AreaKind::code`: 0 flat, 1 rough, 3 slope, 4 gravel):
+    /// True terrain under the robot (`AreaKind::code`: 0 flat, 1 rough, 3 slope, 4 gravel,
+    /// 5 sand):
     /// the env's area, or on the mixed course the part it is on.
     pub area: u8,
     /// Bits `EVENT_*`.
@@ -185,6 +186,9 @@ pub struct EnvTick {
     pub imu_euler: [f32; 3],
     /// sin of `imu_euler`'s θx: the estimator's signal with `estimator.signal = "imu"`.
     pub imu_sin_pitch: f32,
+    /// The wheel commands (left, right) the step ran with, after clipping, rad/s: the slip
+    /// feature's commanded path.
+    pub command: [f32; 2],
 }
 
 // ---- estimator → sim, monitors: `terrain` ---------------------------------------------------
@@ -339,7 +343,7 @@ pub struct GymEnvStep {
     pub truncated: u8,
     /// 1 when the episode ended at its target.
     pub success: u8,
-    /// The ground under the robot: `AreaKind::code` (0 flat, 1 rough, 3 slope, 4 gravel).
+    /// The ground under the robot: `AreaKind::code` (0 flat, 1 rough, 3 slope, 4 gravel, 5 sand).
     pub area: u8,
     pub env: u32,
 }
@@ -557,9 +561,10 @@ mod tests {
         assert_eq!(offset_of!(TickHeader, reach_ticks_sq), 56, "{MSG}");
         assert_eq!(
             (size_of::<EnvTick>(), align_of::<EnvTick>()),
-            (64, 4),
+            (72, 4),
             "{MSG}"
         );
+        assert_eq!(offset_of!(EnvTick, command), 64, "{MSG}");
         assert_eq!(offset_of!(EnvTick, imu_euler), 48, "{MSG}");
         assert_eq!(offset_of!(EnvTick, pos), 8, "{MSG}");
         assert_eq!(offset_of!(EnvTick, sin_pitch), 32, "{MSG}");

@@ -108,7 +108,8 @@ fn expected() -> Value {
             reward,
             target,
             imu_euler,
-            imu_sin_pitch
+            imu_sin_pitch,
+            command
         }),
         layout!(TerrainHeader {
             tick,

@@ -3,7 +3,8 @@
 //!
 //! Every feature of a window ending at tick t covers ticks t − w + 1 ..= t of one series, as
 //! SPEC S7's rolling std does; windows never span two series, and windows the robot barely
-//! moved in are left out by the same gate (`estimator.min-speed`).
+//! moved in are left out by the same gate (`estimator.min-speed`), unless the features hold
+//! slip and the wheels were driven that far: a robot dug in, wheels turning, slip 1.
 
 use crate::analysis::{DDOF, Series};
 use crate::rolling::{rolling_path, rolling_std};
@@ -65,14 +66,20 @@ pub fn window_features(
         ..FeatureWindows::default()
     };
     let min_travel = min_step_travel * (window - 1) as f64;
+    let slip = features.contains(&WindowFeature::Slip);
     for s in series {
         let path = rolling_path(&s.xz, window)?;
         let columns: Vec<Vec<f64>> = features
             .iter()
             .map(|&f| column(s, window, f, &path, wheels))
             .collect::<Result<_>>()?;
+        let driven = if slip {
+            commanded_path(s, window, wheels)
+        } else {
+            vec![0.0; path.len()]
+        };
         for (t, &travelled) in path.iter().enumerate() {
-            if travelled >= min_travel {
+            if counts(travelled, driven[t], min_travel) {
                 out.values.extend(columns.iter().map(|c| c[t]));
                 out.kinds.push(s.area);
             } else {
@@ -131,20 +138,29 @@ fn column(
                 .map(|sum| (sum / (w - 2).max(1) as f64).sqrt())
                 .collect()
         }
-        WindowFeature::Slip => {
-            // The moves into ticks t − w + 2 ..= t, as the rolling path counts them.
-            let commanded: Vec<f64> = s
-                .command
-                .iter()
-                .map(|c| c.abs() * wheels.radius * wheels.dt)
-                .collect();
-            window_sums(&commanded[1.min(commanded.len())..], 1, w)
-                .into_iter()
-                .zip(path)
-                .map(|(want, got)| slip(*got, want))
-                .collect()
-        }
+        WindowFeature::Slip => commanded_path(s, w, wheels)
+            .into_iter()
+            .zip(path)
+            .map(|(want, got)| slip(*got, want))
+            .collect(),
     })
+}
+
+/// The path the wheels' mean command asked for in each full window: |command| · r · dt over
+/// the moves into ticks t − w + 2 ..= t, as the rolling path counts them.
+fn commanded_path(s: &Series, w: usize, wheels: Wheels) -> Vec<f64> {
+    let commanded: Vec<f64> = s
+        .command
+        .iter()
+        .map(|c| c.abs() * wheels.radius * wheels.dt)
+        .collect();
+    window_sums(&commanded[1.min(commanded.len())..], 1, w)
+}
+
+/// Whether a window counts: the robot moved `min_travel`, or its wheels were driven that far
+/// (`driven`, 0 unless the features hold slip).
+pub fn counts(travelled: f64, driven: f64, min_travel: f64) -> bool {
+    travelled >= min_travel || driven >= min_travel
 }
 
 /// The chassis's tilt from upright, radians: `acos(cos θx cos θz)` (Unity's Y-X-Z order puts

@@ -19,6 +19,7 @@ const ROUGH: RGBColor = RGBColor(214, 39, 40);
 const MIXED: RGBColor = RGBColor(148, 103, 189);
 const SLOPE: RGBColor = RGBColor(140, 86, 75);
 const GRAVEL: RGBColor = RGBColor(127, 127, 127);
+const SAND: RGBColor = RGBColor(219, 186, 92);
 use common::plot::FONT;
 const GRID: RGBColor = RGBColor(242, 242, 242);
 
@@ -29,6 +30,7 @@ fn area_color(area: AreaKind) -> RGBColor {
         AreaKind::Mixed => MIXED,
         AreaKind::Slope => SLOPE,
         AreaKind::Gravel => GRAVEL,
+        AreaKind::Sand => SAND,
     }
 }
 

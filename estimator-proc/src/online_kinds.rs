@@ -6,7 +6,8 @@
 //! a run does not have.
 //!
 //! As online SPEC S7 estimation: windows the robot barely moved in (`estimator.min-speed`)
-//! keep the env's previous estimate, and a respawn ([`KindsEstimator::reset_env`]) starts a
+//! keep the env's previous estimate (unless the classifier reads slip and the wheels were
+//! driven: [`features::counts`]), and a respawn ([`KindsEstimator::reset_env`]) starts a
 //! new window. A window no component explains (`estimator.unknown-beyond`) is unknown.
 
 use crate::analysis::Series;
@@ -15,7 +16,8 @@ use crate::kinds::StoredKinds;
 use crate::rolling::RollingPath;
 use crate::{EstimatorError, Result};
 use common::AreaKind;
-use common::config::{EstimatorConfig, WindowFeature};
+use common::Config;
+use common::config::WindowFeature;
 use std::collections::VecDeque;
 
 /// One env's estimate after one tick.
@@ -30,10 +32,22 @@ pub struct KindEstimate {
     pub pitch_std: Option<f64>,
 }
 
+/// What the estimator reads of one env's tick.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct KindTick {
+    pub sin_pitch: f64,
+    /// sin θz.
+    pub sin_roll: f64,
+    /// The robot's X-Z position, metres.
+    pub at: [f64; 2],
+    /// The wheels' mean command, rad/s (the slip feature's).
+    pub command: f64,
+}
+
 #[derive(Debug, Clone)]
 struct EnvWindow {
-    /// The last `window` ticks' (sin θx, sin θz, x, z).
-    ticks: VecDeque<[f64; 4]>,
+    /// The last `window` ticks.
+    ticks: VecDeque<KindTick>,
     travel: RollingPath,
     held: KindEstimate,
 }
@@ -45,6 +59,10 @@ pub struct KindsEstimator {
     beyond: f64,
     /// Path over a window below which it is stationary, metres.
     min_travel: f64,
+    /// Wheel radius and decision step, for the commanded path.
+    wheels: Wheels,
+    /// Whether the classifier reads slip (then a window whose wheels were driven counts).
+    slip: bool,
     envs: Vec<EnvWindow>,
     /// Where the classifier's features hold the std of sin θx, if they do.
     pitch_std_at: Option<usize>,
@@ -55,14 +73,10 @@ pub struct KindsEstimator {
 }
 
 impl KindsEstimator {
-    /// The classifier of `cfg.kinds_model` for `online-window`, for `num_envs` envs; windows
-    /// shorter than `min_step_travel` metres per tick are stationary. The config is assumed
-    /// validated ([`common::Config::validate`]).
-    pub fn from_config(
-        cfg: &EstimatorConfig,
-        num_envs: usize,
-        min_step_travel: f64,
-    ) -> anyhow::Result<Self> {
+    /// The classifier of `estimator.kinds-model` for `online-window`, for the run's envs and
+    /// robot. The config is assumed validated ([`common::Config::validate`]).
+    pub fn from_config(config: &Config) -> anyhow::Result<Self> {
+        let cfg = &config.estimator;
         let path = cfg
             .kinds_model
             .as_deref()
@@ -77,21 +91,25 @@ impl KindsEstimator {
                     cfg.online_window
                 )
             })?;
+        let wheels = Wheels {
+            radius: config.sim.robot.wheel_radius,
+            dt: config.sim.decision_dt(),
+        };
         Ok(Self::new(
             stored,
-            num_envs,
+            config.sim.num_envs(),
             cfg.unknown_beyond,
-            min_step_travel,
+            (config.min_step_travel(), wheels),
         )?)
     }
 
-    /// An estimator over `stored` (no slip feature: telemetry does not carry the wheel
-    /// command) for `num_envs` envs.
+    /// An estimator over `stored` for `num_envs` envs; windows shorter than `min_step_travel`
+    /// metres per tick (of `wheels`' robot) are stationary.
     pub fn new(
         stored: StoredKinds,
         num_envs: usize,
         beyond: f64,
-        min_step_travel: f64,
+        (min_step_travel, wheels): (f64, Wheels),
     ) -> Result<Self> {
         if num_envs == 0 {
             return Err(EstimatorError::NoEnvs);
@@ -104,6 +122,8 @@ impl KindsEstimator {
         };
         Ok(Self {
             min_travel: min_step_travel * (w - 1) as f64,
+            wheels,
+            slip: stored.features.contains(&WindowFeature::Slip),
             pitch_std_at: stored
                 .features
                 .iter()
@@ -119,8 +139,7 @@ impl KindsEstimator {
                 sin_pitch: Vec::with_capacity(w),
                 sin_roll: Vec::with_capacity(w),
                 xz: Vec::with_capacity(w),
-                // No slip feature online: the wheel command is never read.
-                command: vec![0.0; w],
+                command: Vec::with_capacity(w),
             },
         })
     }
@@ -143,30 +162,35 @@ impl KindsEstimator {
         Ok(())
     }
 
-    /// Feeds env `env`'s sin θx, sin θz and X-Z position (metres) for this tick and returns
-    /// its estimate. A non-finite value is refused and not fed.
-    pub fn observe(
-        &mut self,
-        env: usize,
-        sin_pitch: f64,
-        sin_roll: f64,
-        at: [f64; 2],
-    ) -> Result<KindEstimate> {
-        let tick = [sin_pitch, sin_roll, at[0], at[1]];
-        if let Some(&value) = tick.iter().find(|v| !v.is_finite()) {
+    /// Feeds env `env`'s tick and returns its estimate. A non-finite value is refused and
+    /// not fed.
+    pub fn observe(&mut self, env: usize, tick: KindTick) -> Result<KindEstimate> {
+        let values = [
+            tick.sin_pitch,
+            tick.sin_roll,
+            tick.at[0],
+            tick.at[1],
+            tick.command,
+        ];
+        if let Some(&value) = values.iter().find(|v| !v.is_finite()) {
             return Err(EstimatorError::NonFiniteObservation { env, value });
         }
         let w = self.stored.window;
-        let min_travel = self.min_travel;
+        let (min_travel, slip, wheels) = (self.min_travel, self.slip, self.wheels);
         let state = self.env_mut(env)?;
         if state.ticks.len() == w {
             state.ticks.pop_front();
         }
         state.ticks.push_back(tick);
-        let Some(path) = state.travel.push(at) else {
+        let Some(path) = state.travel.push(tick.at) else {
             return Ok(state.held);
         };
-        if path < min_travel {
+        // The moves into every tick but the first, as the rolling path counts them.
+        let driven = || {
+            let turned: f64 = state.ticks.iter().skip(1).map(|t| t.command.abs()).sum();
+            turned * wheels.radius * wheels.dt
+        };
+        if !features::counts(path, if slip { driven() } else { 0.0 }, min_travel) {
             self.stationary += 1;
             return Ok(self.envs[env].held);
         }
@@ -195,22 +219,20 @@ impl KindsEstimator {
         let ticks = &self.envs[env].ticks;
         let s = &mut self.series;
         s.sin_pitch.clear();
-        s.sin_pitch.extend(ticks.iter().map(|t| t[0]));
+        s.sin_pitch.extend(ticks.iter().map(|t| t.sin_pitch));
         s.sin_roll.clear();
-        s.sin_roll.extend(ticks.iter().map(|t| t[1]));
+        s.sin_roll.extend(ticks.iter().map(|t| t.sin_roll));
         s.xz.clear();
-        s.xz.extend(ticks.iter().map(|t| [t[2], t[3]]));
-        // The gate was applied by the caller; without slip the wheels are never read.
-        let wheels = Wheels {
-            radius: 0.0,
-            dt: 0.0,
-        };
+        s.xz.extend(ticks.iter().map(|t| t.at));
+        s.command.clear();
+        s.command.extend(ticks.iter().map(|t| t.command));
+        // The gate was applied by the caller.
         let windows = features::window_features(
             std::slice::from_ref(s),
             self.stored.window,
             &self.stored.features,
             0.0,
-            wheels,
+            self.wheels,
         )?;
         Ok(windows.values)
     }
@@ -239,7 +261,21 @@ mod tests {
             component_kinds: vec![AreaKind::Slope, AreaKind::Gravel],
             model: Classifier::OneFeature(gmm),
         };
-        KindsEstimator::new(stored, 2, 0.0, min_step_travel).expect("estimator")
+        KindsEstimator::new(stored, 2, 0.0, (min_step_travel, WHEELS)).expect("estimator")
+    }
+
+    const WHEELS: Wheels = Wheels {
+        radius: 0.05,
+        dt: 0.1,
+    };
+
+    /// A tick at sin θx `p`, at `x` along X, no roll, wheels still.
+    fn tick(p: f64, x: f64) -> KindTick {
+        KindTick {
+            sin_pitch: p,
+            at: [x, 0.0],
+            ..KindTick::default()
+        }
     }
 
     #[test]
@@ -249,7 +285,7 @@ mod tests {
         let got: Vec<KindEstimate> = pitches
             .iter()
             .enumerate()
-            .map(|(t, &p)| e.observe(0, p, 0.0, [t as f64, 0.0]).expect("observe"))
+            .map(|(t, &p)| e.observe(0, tick(p, t as f64)).expect("observe"))
             .collect();
         assert!(
             got[..3].iter().all(|g| g.kind.is_none()),
@@ -261,12 +297,9 @@ mod tests {
         assert!((std - (0.04f64 / 3.0).sqrt()).abs() < 1e-12, "{std}");
         assert!(got[3].posterior > 0.99);
         // The other env has its own window.
-        assert_eq!(
-            e.observe(1, 0.0, 0.0, [0.0, 0.0]).expect("observe").kind,
-            None
-        );
+        assert_eq!(e.observe(1, tick(0.0, 0.0)).expect("observe").kind, None);
         for t in 0..4 {
-            e.observe(0, 0.01 * f64::from(t % 2), 0.0, [f64::from(t), 0.0])
+            e.observe(0, tick(0.01 * f64::from(t % 2), f64::from(t)))
                 .expect("observe");
         }
         assert_eq!(e.envs[0].held.kind, Some(AreaKind::Slope));
@@ -278,18 +311,60 @@ mod tests {
     fn a_stationary_window_keeps_the_last_kind_and_bad_values_are_refused() {
         let mut e = estimator(0.1);
         for (t, p) in [0.0, 0.2, 0.0, 0.2].into_iter().enumerate() {
-            e.observe(0, p, 0.0, [0.5 * t as f64, 0.0])
-                .expect("observe");
+            e.observe(0, tick(p, 0.5 * t as f64)).expect("observe");
         }
         assert_eq!(e.envs[0].held.kind, Some(AreaKind::Gravel));
         // Standing still with a smooth pitch: a moving window would read slope.
         // The first two windows still span the drive; the next four see no movement.
         for _ in 0..6 {
-            let g = e.observe(0, 0.0, 0.0, [1.5, 0.0]).expect("observe");
+            let g = e.observe(0, tick(0.0, 1.5)).expect("observe");
             assert_eq!(g.kind, Some(AreaKind::Gravel));
         }
         assert_eq!(e.stationary(), 4);
-        assert!(e.observe(0, f64::NAN, 0.0, [0.0, 0.0]).is_err());
-        assert!(e.observe(2, 0.0, 0.0, [0.0, 0.0]).is_err());
+        assert!(e.observe(0, tick(f64::NAN, 0.0)).is_err());
+        assert!(e.observe(2, tick(0.0, 0.0)).is_err());
+    }
+
+    #[test]
+    fn a_slip_classifier_names_a_robot_whose_wheels_turn_where_it_stands() {
+        // Slip alone: component 0 near 0 (rolling) is flat, 1 near 1 (dug in) sand.
+        let gmm = Gmm::new(vec![0.5, 0.5], vec![0.0, 1.0], vec![0.01, 0.01]).expect("gmm");
+        let stored = StoredKinds {
+            window: 4,
+            features: vec![WindowFeature::Slip],
+            component_kinds: vec![AreaKind::Flat, AreaKind::Sand],
+            model: Classifier::OneFeature(gmm),
+        };
+        let mut e = KindsEstimator::new(stored, 1, 0.0, (0.005, WHEELS)).expect("estimator");
+        // Rolling at the command: 2 rad/s × 0.05 m × 0.1 s = 1 cm a tick, slip 0.
+        for t in 0..4 {
+            let g = e.observe(
+                0,
+                KindTick {
+                    command: 2.0,
+                    ..tick(0.0, 0.01 * f64::from(t))
+                },
+            );
+            assert_eq!(g.expect("observe").kind, (t == 3).then_some(AreaKind::Flat));
+        }
+        // Dug in: the wheels turn, the robot stays. The window counts, and reads sand once
+        // its three moves are all in place.
+        let got: Vec<_> = (0..3)
+            .map(|_| {
+                let t = KindTick {
+                    command: 2.0,
+                    ..tick(0.0, 0.03)
+                };
+                e.observe(0, t).expect("observe").kind
+            })
+            .collect();
+        assert_eq!(got[2], Some(AreaKind::Sand), "{got:?}");
+        assert_eq!(e.stationary(), 0);
+        // Wheels still too: stationary, the estimate holds.
+        for _ in 0..4 {
+            let g = e.observe(0, tick(0.0, 0.03)).expect("observe");
+            assert_eq!(g.kind, Some(AreaKind::Sand));
+        }
+        assert!(e.stationary() > 0);
     }
 }

@@ -92,7 +92,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
         """Every env's first observation, and `info["area"]` (the ground's code: 0 flat,
-        1 rough, 3 slope, 4 gravel): rebuilt from
+        1 rough, 3 slope, 4 gravel, 5 sand): rebuilt from
         `seed` (an int s, or the per-env list [s, s+1, …] Gymnasium makes of it), or with
         none each env's next episode from a new pose. `options` is unused."""
         seed = _one_seed(seed, self.num_envs)
@@ -143,14 +143,15 @@ def _one_seed(seed, envs: int) -> int | None:
 
 
 #: The areas an env can drive in: the terrain kinds, then the mixed course.
-AREAS = ("flat", "rough", "slope", "gravel", "mixed")
+AREAS = ("flat", "rough", "slope", "gravel", "sand", "mixed")
 
 
 class Env(gymnasium.Env):
     """One env of lavatube's simulator as a `gymnasium.Env` (a one-env `VectorEnv` underneath).
 
     config, overrides: as `VectorEnv`'s; area: where the env drives, `flat`, `rough`,
-    `slope`, `gravel` (the last two need an area of their kind in the config) or `mixed`.
+    `slope`, `gravel`, `sand` (the last three need an area of their kind in the config) or
+    `mixed`.
     An episode's last step returns its last observation; the next `reset()` returns the next
     episode's first (which the sim has already begun, from where the robot stands, SPEC S3).
     """

@@ -92,12 +92,14 @@ class TickHeader(Wire):
 
 class EnvTick(Wire):
     """One env at one tick: true area, `EVENT_*` bits, acting slot, pose, sin θx, reward,
-    target (x, z), and the IMU filter's Euler angles and sin θx (NaN without an IMU)."""
+    target (x, z), the IMU filter's Euler angles and sin θx (NaN without an IMU), and the
+    wheel commands (left, right) the step ran with."""
 
-    TYPE_NAME = "lavatube.EnvTick.v3"
+    TYPE_NAME = "lavatube.EnvTick.v4"
     _fields_ = [("env", u32), ("area", u8), ("events", u8), ("slot", u8), ("_reserved", u8),
                 ("pos", f32 * 3), ("euler", f32 * 3), ("sin_pitch", f32), ("reward", f32),
-                ("target", f32 * 2), ("imu_euler", f32 * 3), ("imu_sin_pitch", f32)]
+                ("target", f32 * 2), ("imu_euler", f32 * 3), ("imu_sin_pitch", f32),
+                ("command", f32 * 2)]
 
 
 # ---- estimator → sim, monitors: `terrain` -----------------------------------------------------

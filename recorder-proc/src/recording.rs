@@ -289,5 +289,6 @@ fn area_color(area: AreaKind) -> [u8; 3] {
         AreaKind::Mixed => [90, 180, 90],
         AreaKind::Slope => [140, 86, 75],
         AreaKind::Gravel => [150, 150, 150],
+        AreaKind::Sand => [219, 186, 92],
     }
 }

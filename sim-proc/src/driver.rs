@@ -188,6 +188,7 @@ impl Driver {
                 target: info.target.map(|v| v as f32),
                 imu_euler: imu.map(|v| v as f32),
                 imu_sin_pitch: imu[0].sin() as f32,
+                command: env.action(),
                 ..EnvTick::default()
             };
         }

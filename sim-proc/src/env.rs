@@ -3,6 +3,7 @@
 
 use crate::attitude::Sensing;
 use crate::robot::{self, Drive, Robot, TERRAIN_GROUP};
+use crate::sinkage::Sinkage;
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
 use common::config::{AreaKind, AttitudeSource, EpisodeStart, Rect, SimConfig, TerrainCollider};
@@ -100,6 +101,8 @@ pub struct Env {
     sensing: Option<Sensing>,
     /// The floor's friction and combine rule now (see [`floor_contact`]).
     contact: (f32, CoefficientCombineRule),
+    /// The wheels' sinkage, when the world has sand.
+    sinkage: Option<Sinkage>,
 }
 
 impl Env {
@@ -134,6 +137,7 @@ impl Env {
                 .simulates_imu()
                 .then(|| Sensing::new(&cfg.imu, seed, id)),
             contact: floor_contact(cfg, AreaKind::Flat),
+            sinkage: None,
         };
         env.placed();
         env.new_episode();
@@ -239,10 +243,36 @@ impl Env {
         }
     }
 
-    /// Notes the new world's floor contact and restarts the attitude filter on a robot just
-    /// placed in it.
+    /// Sand: each wheel's sinkage over the decision step about to run at the command.
+    fn sink(&mut self) {
+        let Some(sinkage) = self.sinkage.as_mut() else {
+            return;
+        };
+        let on_sand = self.robot.wheel_centres(&self.world).map(|c| {
+            let at = [f64::from(c.x), f64::from(c.z)];
+            ground_at(&self.cfg, self.area, at) == AreaKind::Sand
+        });
+        sinkage.step(
+            &self.cfg.terrain.sand,
+            &self.cfg.robot,
+            (&mut self.world, &self.robot),
+            self.action,
+            on_sand,
+            self.cfg.decision_dt(),
+        );
+    }
+
+    /// The wheels' sinkage (left, right; `sinkage`): zero off sand.
+    pub fn sinkage(&self) -> [f64; 2] {
+        self.sinkage.map_or([0.0; 2], |s| s.depth)
+    }
+
+    /// Notes the new world's floor contact, starts its wheels unsunk and restarts the
+    /// attitude filter on a robot just placed in it.
     fn placed(&mut self) {
         self.contact = floor_contact(&self.cfg, self.ground());
+        self.sinkage =
+            (self.cfg.terrain.rects_of(AreaKind::Sand).next().is_some()).then(Sinkage::default);
         if let Some(s) = self.sensing.as_mut() {
             s.place(
                 &self.world.bodies[self.robot.chassis],
@@ -334,6 +364,7 @@ impl Env {
             .robot
             .command(&mut self.world, &self.cfg.robot, self.action);
         self.contact_ground();
+        self.sink();
         let healthy = self.physics_substeps(&drive);
         self.tick += 1;
         let p = self.pose();

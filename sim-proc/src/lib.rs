@@ -18,6 +18,7 @@ pub mod outputs;
 mod pool;
 pub mod robot;
 pub mod serve;
+pub mod sinkage;
 pub mod standalone;
 pub mod switching;
 pub mod task;

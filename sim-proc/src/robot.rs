@@ -123,6 +123,13 @@ impl Robot {
         self.wheels.map(|h| world.colliders[h].translation())
     }
 
+    /// Sets both wheels' friction (left, right): sand's sinkage (`sinkage`).
+    pub fn set_wheel_friction(&self, world: &mut PhysicsWorld, friction: [f32; 2]) {
+        for (h, mu) in self.wheels.iter().zip(friction) {
+            world.colliders[*h].set_friction(mu);
+        }
+    }
+
     /// Commands both wheels' angular velocity (rad/s, already clipped) and returns the hook
     /// the physics steps until the next command run with. `joint` wheels take the command
     /// as their motors' target; `contact` wheels through the returned [`Drive`].

@@ -1,6 +1,6 @@
 //! The terrain kinds beyond the paper's two against physical expectations: a robot slides
-//! down a slope whose friction is below what its incline needs, and gravel shakes the chassis
-//! at higher frequencies than rough ground.
+//! down a slope whose friction is below what its incline needs, gravel shakes the chassis at
+//! higher frequencies than rough ground, and a wheel that spins fast digs into sand.
 
 use common::config::{Area, AreaKind, SimConfig, TerrainConfig, WheelModel};
 use sim_proc::env::{SharedTerrain, build_world};
@@ -168,4 +168,63 @@ fn gravel_shakes_the_pitch_at_higher_frequencies_than_rough_ground() {
         gravel_std > flat_std && gravel_std < 0.6 * rough_std,
         "rolling std: gravel {gravel_std}, rough {rough_std}, flat {flat_std}"
     );
+}
+
+/// How far (metres, start to end) a robot dropped at a random pose on a 6 m square of `kind`
+/// drives straight in 10 s with both wheels at `command`, and its wheels' sinkage then.
+fn straight_run(kind: AreaKind, command: f32) -> (f64, [f64; 2]) {
+    let mut cfg = SimConfig {
+        terrain: TerrainConfig {
+            areas: vec![Area {
+                kind,
+                x: [0.0, 6.0],
+                z: [0.0, 6.0],
+            }],
+            mixed_area: common::config::Rect {
+                x: [0.0, 6.0],
+                z: [7.0, 8.0],
+            },
+            mixed_parts: Vec::new(),
+            cell_size: 0.02,
+            ..TerrainConfig::default()
+        },
+        ..SimConfig::default()
+    };
+    cfg.only_in(kind, 1);
+    // Nothing ends the drive: no leaving the area, no target in reach.
+    cfg.task.leave_margin = 10.0;
+    cfg.task.delta = 1.0;
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
+    let mut env = sim_proc::env::Env::new(0, &cfg, &terrain, 7);
+    let start = env.pose().ground();
+    for _ in 0..100 {
+        let info = env.step([command; 2]);
+        assert!(info.ending.is_none(), "{kind:?}: {info:?}");
+    }
+    let end = env.pose().ground();
+    ((end[0] - start[0]).hypot(end[1] - start[1]), env.sinkage())
+}
+
+#[test]
+fn a_robot_at_full_command_digs_into_sand_and_a_gentle_one_crosses_it() {
+    let r = SimConfig::default().robot.wheel_radius;
+    // Hard ground: full command (3 rad/s, 0.105 m/s at the rim) covers its ω·r·t.
+    let (flat, flat_sink) = straight_run(AreaKind::Flat, 3.0);
+    assert!(flat > 0.85 * 3.0 * r * 10.0, "flat: {flat} m");
+    assert_eq!(flat_sink, [0.0; 2]);
+    // Sand: the rim outruns the dig speed (0.06 m/s), the wheels sink within about a second
+    // and then spin in their ruts.
+    let (dug, dug_sink) = straight_run(AreaKind::Sand, 3.0);
+    assert!(
+        dug < 0.2 * flat,
+        "sand at full command: {dug} m against {flat} m on flat"
+    );
+    assert!(dug_sink.iter().all(|s| *s > 0.99), "{dug_sink:?}");
+    // Below the dig speed (1.5 rad/s, 0.0525 m/s) nothing sinks: the gentle robot goes farther.
+    let (gentle, gentle_sink) = straight_run(AreaKind::Sand, 1.5);
+    assert!(
+        gentle > 0.85 * 1.5 * r * 10.0,
+        "sand at 1.5 rad/s: {gentle} m"
+    );
+    assert_eq!(gentle_sink, [0.0; 2]);
 }

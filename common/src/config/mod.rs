@@ -35,7 +35,7 @@ pub use sim::{AreaKind, Rect, SimConfig};
 pub use supervise::{Restart, RestartPolicy, SuperviseConfig};
 pub use task::{EpisodeStart, TaskConfig};
 pub use terrain::{
-    Area, GravelConfig, HeightmapConfig, SlopeConfig, TerrainCollider, TerrainConfig,
+    Area, GravelConfig, HeightmapConfig, SandConfig, SlopeConfig, TerrainCollider, TerrainConfig,
 };
 
 use serde::de::DeserializeOwned;

@@ -83,13 +83,6 @@ impl EstimatorConfig {
             "classifiers",
             |m: &OfflineKinds| m.window,
         )?;
-        if m.features.contains(&WindowFeature::Slip) {
-            return Err(bad(
-                "its classifier uses `slip`, which needs each tick's wheel command: telemetry \
-                 does not carry it online"
-                    .into(),
-            ));
-        }
         if let Some(k) = m.component_kinds.iter().find(|k| **k == AreaKind::Mixed) {
             return Err(bad(format!(
                 "names a component `{}`, not a terrain kind",
@@ -230,9 +223,10 @@ mod tests {
             "{err}"
         );
         e.online_window = 70;
+        // Telemetry carries the wheel command: a slip classifier runs online.
         write(70, r#""pitch-std", "slip""#);
-        let err = e.offline_kinds().expect_err("slip").to_string();
-        assert!(err.contains("uses `slip`"), "{err}");
+        let m = e.offline_kinds().expect("slip").expect("a model");
+        assert_eq!(m.features, [WindowFeature::PitchStd, WindowFeature::Slip]);
         write(70, r#""pitch-std""#);
         e.model = Some(path.clone());
         let cfg = Config {

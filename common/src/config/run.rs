@@ -54,15 +54,17 @@ pub enum PolicySlot {
     Rough,
     Slope,
     Gravel,
+    Sand,
 }
 
 impl PolicySlot {
-    pub const ALL: [PolicySlot; 5] = [
+    pub const ALL: [PolicySlot; 6] = [
         PolicySlot::General,
         PolicySlot::Flat,
         PolicySlot::Rough,
         PolicySlot::Slope,
         PolicySlot::Gravel,
+        PolicySlot::Sand,
     ];
 
     /// The slot's index on the wire (`PolicyHeader::slot`, `Transition::slot`).
@@ -77,6 +79,7 @@ impl PolicySlot {
             PolicySlot::Rough => "rough",
             PolicySlot::Slope => "slope",
             PolicySlot::Gravel => "gravel",
+            PolicySlot::Sand => "sand",
         }
     }
 
@@ -88,16 +91,19 @@ impl PolicySlot {
             PolicySlot::Rough => "learner-rough",
             PolicySlot::Slope => "learner-slope",
             PolicySlot::Gravel => "learner-gravel",
+            PolicySlot::Sand => "learner-sand",
         }
     }
 
-    /// Parses a slot name (`general`, `flat`, `rough`, `slope`, `gravel`), for command lines.
+    /// Parses a slot name (`general`, `flat`, `rough`, `slope`, `gravel`, `sand`), for command lines.
     pub fn parse(name: &str) -> Result<Self, String> {
         Self::ALL
             .into_iter()
             .find(|s| s.name() == name)
             .ok_or_else(|| {
-                format!("unknown policy slot `{name}`: use general, flat, rough, slope or gravel")
+                format!(
+                    "unknown policy slot `{name}`: use general, flat, rough, slope, gravel or sand"
+                )
             })
     }
 
@@ -109,6 +115,7 @@ impl PolicySlot {
             PolicySlot::Rough => Some(AreaKind::Rough),
             PolicySlot::Slope => Some(AreaKind::Slope),
             PolicySlot::Gravel => Some(AreaKind::Gravel),
+            PolicySlot::Sand => Some(AreaKind::Sand),
         }
     }
 
@@ -136,6 +143,7 @@ pub enum Acting {
     Rough,
     Slope,
     Gravel,
+    Sand,
     /// The specialist for the estimator's current class, changed only after the estimate has
     /// held for `switch-dwell` ticks (SPEC S8).
     Switch,
@@ -152,6 +160,7 @@ impl Acting {
             Acting::Rough => Some(PolicySlot::Rough),
             Acting::Slope => Some(PolicySlot::Slope),
             Acting::Gravel => Some(PolicySlot::Gravel),
+            Acting::Sand => Some(PolicySlot::Sand),
             Acting::Switch | Acting::External => None,
         }
     }

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 pub const IMU_MAX_PHYSICS_DT: f64 = 0.02;
 
 /// Which area an env lives in: a terrain kind's area (SPEC S1's flat and rough, and our
-/// `slope` and `gravel`), or the mixed course (our extension, for the switching evaluation),
+/// `slope`, `gravel` and `sand`), or the mixed course (our extension, for the switching evaluation),
 /// flat ground that crosses other kinds part-way.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -24,18 +24,20 @@ pub enum AreaKind {
     Mixed,
     Slope,
     Gravel,
+    Sand,
 }
 
 impl AreaKind {
     /// The terrain kinds, in code order (every area but the mixed course).
-    pub const KINDS: [AreaKind; 4] = [
+    pub const KINDS: [AreaKind; 5] = [
         AreaKind::Flat,
         AreaKind::Rough,
         AreaKind::Slope,
         AreaKind::Gravel,
+        AreaKind::Sand,
     ];
 
-    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed, 3 slope, 4 gravel. Telemetry never
+    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed, 3 slope, 4 gravel, 5 sand. Telemetry never
     /// carries 2: a mixed env reports the ground under the robot.
     pub fn code(self) -> u8 {
         match self {
@@ -44,6 +46,7 @@ impl AreaKind {
             AreaKind::Mixed => 2,
             AreaKind::Slope => 3,
             AreaKind::Gravel => 4,
+            AreaKind::Sand => 5,
         }
     }
 
@@ -54,6 +57,7 @@ impl AreaKind {
             AreaKind::Mixed => "mixed",
             AreaKind::Slope => "slope",
             AreaKind::Gravel => "gravel",
+            AreaKind::Sand => "sand",
         }
     }
 }
@@ -91,6 +95,9 @@ pub struct SimConfig {
     /// Envs in the gravel area (not in the paper; needs one in `terrain.areas`), after the
     /// slope ones. 0 ..= 1024. Default 0.
     pub gravel_envs: usize,
+    /// Envs in the sand area (not in the paper; needs one in `terrain.areas`), after the
+    /// gravel ones. 0 ..= 1024. Default 0.
+    pub sand_envs: usize,
     /// Envs on the mixed course (`terrain.mixed-area`), after all the others. 0 ..= 1024.
     /// Default 0.
     pub mixed_envs: usize,
@@ -135,6 +142,7 @@ impl Default for SimConfig {
             rough_envs: 0,
             slope_envs: 0,
             gravel_envs: 0,
+            sand_envs: 0,
             mixed_envs: 0,
             threads: 2,
             acting: Acting::General,
@@ -159,13 +167,14 @@ impl SimConfig {
         self.observation == AttitudeSource::Imu || self.imu.simulate
     }
 
-    /// The env counts per area, in env order: flat, rough, slope, gravel, mixed.
-    pub fn env_counts(&self) -> [(AreaKind, usize); 5] {
+    /// The env counts per area, in env order: flat, rough, slope, gravel, sand, mixed.
+    pub fn env_counts(&self) -> [(AreaKind, usize); 6] {
         [
             (AreaKind::Flat, self.flat_envs),
             (AreaKind::Rough, self.rough_envs),
             (AreaKind::Slope, self.slope_envs),
             (AreaKind::Gravel, self.gravel_envs),
+            (AreaKind::Sand, self.sand_envs),
             (AreaKind::Mixed, self.mixed_envs),
         ]
     }
@@ -174,7 +183,7 @@ impl SimConfig {
         self.env_counts().iter().map(|(_, n)| n).sum()
     }
 
-    /// The area of env `i`: flat envs first, then rough, slope, gravel and mixed (an index
+    /// The area of env `i`: flat envs first, then rough, slope, gravel, sand and mixed (an index
     /// past the last env counts as mixed).
     pub fn area_of(&self, env: usize) -> AreaKind {
         let mut first = 0;
@@ -187,7 +196,7 @@ impl SimConfig {
         AreaKind::Mixed
     }
 
-    /// "4 flat + 4 rough envs", with "+ n slope", "+ n gravel", "+ n mixed" for the areas
+    /// "4 flat + 4 rough envs", with "+ n slope", "+ n gravel", "+ n sand", "+ n mixed" for the areas
     /// that have envs.
     pub fn describe_envs(&self) -> String {
         let others: String = self.env_counts()[2..]
@@ -213,6 +222,7 @@ impl SimConfig {
         self.rough_envs = count(AreaKind::Rough);
         self.slope_envs = count(AreaKind::Slope);
         self.gravel_envs = count(AreaKind::Gravel);
+        self.sand_envs = count(AreaKind::Sand);
         self.mixed_envs = count(AreaKind::Mixed);
     }
 
@@ -227,12 +237,13 @@ impl SimConfig {
         count_in("sim.rough-envs", self.rough_envs, 0, 1024)?;
         count_in("sim.slope-envs", self.slope_envs, 0, 1024)?;
         count_in("sim.gravel-envs", self.gravel_envs, 0, 1024)?;
+        count_in("sim.sand-envs", self.sand_envs, 0, 1024)?;
         count_in("sim.mixed-envs", self.mixed_envs, 0, 1024)?;
         if self.num_envs() == 0 {
             return Err(invalid(
                 "sim.flat-envs",
                 self.flat_envs,
-                "the envs of all areas (flat-envs, rough-envs, slope-envs, gravel-envs, mixed-envs) must be at least 1",
+                "the envs of all areas (flat-envs, rough-envs, slope-envs, gravel-envs, sand-envs, mixed-envs) must be at least 1",
             ));
         }
         for (field, area, n) in [
@@ -240,6 +251,7 @@ impl SimConfig {
             ("sim.rough-envs", AreaKind::Rough, self.rough_envs),
             ("sim.slope-envs", AreaKind::Slope, self.slope_envs),
             ("sim.gravel-envs", AreaKind::Gravel, self.gravel_envs),
+            ("sim.sand-envs", AreaKind::Sand, self.sand_envs),
         ] {
             if n > 0 && self.terrain.area(area).is_none() {
                 return Err(invalid(

@@ -11,7 +11,8 @@ use std::path::PathBuf;
 pub struct TerrainConfig {
     /// Seed of the procedural floor (independent of the run seed, so runs can share a floor).
     pub seed: u64,
-    /// The training areas, at most one per terrain kind (`flat`, `rough`, `slope`, `gravel`),
+    /// The training areas, at most one per terrain kind (`flat`, `rough`, `slope`, `gravel`,
+    /// `sand`),
     /// each `{ kind, x = [min, max], z = [min, max] }`. Default SPEC S1's two: flat at
     /// x ∈ [-2.5, 0.5], z ∈ [-1.0, 0.5] and rough at x ∈ [-9.0, -7.5], z ∈ [1.5, 5.0].
     pub areas: Vec<Area>,
@@ -52,6 +53,8 @@ pub struct TerrainConfig {
     pub slope: SlopeConfig,
     /// The `gravel` kind's ground.
     pub gravel: GravelConfig,
+    /// The `sand` kind's ground.
+    pub sand: SandConfig,
     /// A measured heightmap to use instead of the procedural floor.
     pub heightmap: Option<HeightmapConfig>,
 }
@@ -93,6 +96,7 @@ impl Default for TerrainConfig {
             blend: 0.3,
             slope: SlopeConfig::default(),
             gravel: GravelConfig::default(),
+            sand: SandConfig::default(),
             heightmap: None,
         }
     }
@@ -102,7 +106,7 @@ impl Default for TerrainConfig {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, rename_all = "kebab-case")]
 pub struct Area {
-    /// `flat`, `rough`, `slope` or `gravel`.
+    /// `flat`, `rough`, `slope`, `gravel` or `sand`.
     pub kind: AreaKind,
     /// [min, max] along X, metres.
     pub x: [f64; 2],
@@ -162,6 +166,47 @@ impl Default for GravelConfig {
             amplitude: 0.01,
             spacing: 0.05,
             friction: 0.8,
+        }
+    }
+}
+
+/// `[sim.terrain.sand]`: loose, level sand with wind ripples, where a wheel that spins fast
+/// digs itself in and then spins in its rut (sim-proc's `sinkage` module). A robot there must
+/// drive gently, which costs it time on every other kind.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
+pub struct SandConfig {
+    /// Peak height of the ripples, metres (two crossing sine waves, so a robot meets them
+    /// at any heading). [0, 0.05]. Default 0.005.
+    pub ripple_amplitude: f64,
+    /// Distance between ripple crests, metres. [0.02, 5]. Default 0.3.
+    pub ripple_wavelength: f64,
+    /// The wheels' friction on it, as the slope's. [0, 5]. Default 0.6.
+    pub friction: f64,
+    /// Rim speed |ω|·r above which a wheel throws out more sand than it packs and sinks,
+    /// m/s. [0, 10]. Default 0.06 (57 % of the default robot's top speed).
+    pub dig_speed: f64,
+    /// Sinkage gained per metre of rim travel above `dig-speed` (sinkage 1 is a wheel dug
+    /// in fully). [0, 10^4]. Default 20 (full sinkage in 1.1 s at full command).
+    pub dig_rate: f64,
+    /// Time constant with which a wheel at or below `dig-speed` rolls out of its rut,
+    /// seconds. [0.001, 100]. Default 1.
+    pub settle_time: f64,
+    /// A fully sunk wheel's friction: it spins in its rut without pushing. A wheel's friction
+    /// slides from `robot.wheel-friction` to this as it sinks. [0, 5]. Default 0.05.
+    pub dug_friction: f64,
+}
+
+impl Default for SandConfig {
+    fn default() -> Self {
+        Self {
+            ripple_amplitude: 0.005,
+            ripple_wavelength: 0.3,
+            friction: 0.6,
+            dig_speed: 0.06,
+            dig_rate: 20.0,
+            settle_time: 1.0,
+            dug_friction: 0.05,
         }
     }
 }
@@ -233,6 +278,7 @@ impl TerrainConfig {
         match kind {
             AreaKind::Slope => Some(self.slope.friction),
             AreaKind::Gravel => Some(self.gravel.friction),
+            AreaKind::Sand => Some(self.sand.friction),
             AreaKind::Flat | AreaKind::Rough | AreaKind::Mixed => None,
         }
     }
@@ -317,8 +363,41 @@ impl TerrainConfig {
             0.0,
             5.0,
         )?;
+        self.sand.validate()?;
         if let Some(h) = &self.heightmap {
             h.validate()?;
+        }
+        Ok(())
+    }
+}
+
+impl SandConfig {
+    fn validate(&self) -> Result<(), ConfigError> {
+        for (field, v, lo, hi) in [
+            (
+                "sim.terrain.sand.ripple-amplitude",
+                self.ripple_amplitude,
+                0.0,
+                0.05,
+            ),
+            (
+                "sim.terrain.sand.ripple-wavelength",
+                self.ripple_wavelength,
+                0.02,
+                5.0,
+            ),
+            ("sim.terrain.sand.friction", self.friction, 0.0, 5.0),
+            ("sim.terrain.sand.dig-speed", self.dig_speed, 0.0, 10.0),
+            ("sim.terrain.sand.dig-rate", self.dig_rate, 0.0, 1e4),
+            (
+                "sim.terrain.sand.settle-time",
+                self.settle_time,
+                1e-3,
+                100.0,
+            ),
+            ("sim.terrain.sand.dug-friction", self.dug_friction, 0.0, 5.0),
+        ] {
+            in_range(field, v, lo, hi)?;
         }
         Ok(())
     }

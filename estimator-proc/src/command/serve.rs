@@ -4,7 +4,7 @@
 //! and publishes the estimates on `terrain` (SPEC S7 online; DESIGN §1).
 
 use crate::OnlineEstimator;
-use crate::online_kinds::KindsEstimator;
+use crate::online_kinds::{KindTick, KindsEstimator};
 use common::AreaKind;
 use common::config::AttitudeSource;
 use common::ipc::{self, Bus};
@@ -41,8 +41,13 @@ impl Classifying {
                 (class, e.posterior, e.window_std, e.window)
             }
             Classifying::Kinds(est) => {
-                let sin_roll = f64::from(euler[2]).sin();
-                let e = est.observe(env, f64::from(sin_pitch), sin_roll, at)?;
+                let tick = KindTick {
+                    sin_pitch: f64::from(sin_pitch),
+                    sin_roll: f64::from(euler[2]).sin(),
+                    at,
+                    command: 0.5 * f64::from(t.command[0] + t.command[1]),
+                };
+                let e = est.observe(env, tick)?;
                 let class = e.kind.map_or(wire::CLASS_UNKNOWN, AreaKind::code);
                 (class, e.posterior, e.pitch_std, est.window())
             }
@@ -88,11 +93,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let tx = bus.sender::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None, n)?;
     let mut est = if cfg.estimator.kinds_model.is_some() {
-        Classifying::Kinds(KindsEstimator::from_config(
-            &cfg.estimator,
-            n,
-            cfg.min_step_travel(),
-        )?)
+        Classifying::Kinds(KindsEstimator::from_config(&cfg)?)
     } else {
         Classifying::Classes(
             OnlineEstimator::from_config(&cfg.estimator, n, cfg.run.seed)?

@@ -38,7 +38,7 @@ mod statistics;
 use super::UserError;
 use anyhow::Context;
 use common::Config;
-use common::config::{PolicySlot, WindowFeature};
+use common::config::PolicySlot;
 use legs::Evaluated;
 use pipeline::Pipeline;
 use std::path::{Path, PathBuf};
@@ -74,14 +74,6 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
     if base.run.learners != [PolicySlot::General] || base.run.init_from.is_some() {
         return Err(UserError(
             "reproduce sets run.learners and run.init-from per stage: leave them unset".into(),
-        )
-        .into());
-    }
-    if !pipeline::paper_terrains(&base) && base.estimator.features.contains(&WindowFeature::Slip) {
-        return Err(UserError(
-            "beyond the paper's flat and rough areas, switching names terrain kinds online, \
-             where `slip` is not available: drop it from estimator.features"
-                .into(),
         )
         .into());
     }

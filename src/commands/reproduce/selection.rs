@@ -66,7 +66,7 @@ pub(super) struct Role {
 }
 
 /// The specialist of each of `kinds`: SPEC S8's flat- and rough-terrain models FTM and RTM,
-/// and beyond the paper STM (slope) and GTM (gravel).
+/// and beyond the paper STM (slope), GTM (gravel) and DTM (sand: dune terrain model).
 pub(super) fn roles(kinds: &[AreaKind]) -> Vec<Role> {
     kinds
         .iter()
@@ -76,6 +76,7 @@ pub(super) fn roles(kinds: &[AreaKind]) -> Vec<Role> {
                 AreaKind::Rough => "RTM",
                 AreaKind::Slope => "STM",
                 AreaKind::Gravel => "GTM",
+                AreaKind::Sand => "DTM",
                 AreaKind::Mixed => return None,
             };
             let slot = PolicySlot::for_class(kind.code())?;
@@ -283,7 +284,7 @@ mod tests {
     fn every_kind_has_a_specialist_named_after_it() {
         let all = roles(&AreaKind::KINDS);
         let names: Vec<&str> = all.iter().map(|r| r.model).collect();
-        assert_eq!(names, ["FTM", "RTM", "STM", "GTM"]);
+        assert_eq!(names, ["FTM", "RTM", "STM", "GTM", "DTM"]);
         assert!(all.iter().all(|r| r.slot.kind() == Some(r.kind)));
         assert_eq!(kind_of("STM"), Some(AreaKind::Slope));
         assert_eq!(kind_of("general"), None);
