@@ -8,12 +8,12 @@
 //! beyond the number of kinds (a kind split in two) go to the kind most of their windows
 //! have.
 
-use crate::Result;
 use crate::features::FeatureWindows;
 use crate::gmm::{self, Gmm};
 use crate::mixture::{self, Mixture, MixtureOptions};
+use crate::{EstimatorError, Result};
 use common::AreaKind;
-use common::config::WindowFeature;
+use common::config::{KindsFit, WindowFeature};
 use serde::{Deserialize, Serialize};
 
 /// A fitted classifier of windows: with one feature SPEC S7's 1-D mixture ([`crate::gmm`],
@@ -27,27 +27,36 @@ pub enum Classifier {
 }
 
 impl Classifier {
-    /// Fits `windows` (labels unused) with `opts`' components and EM settings.
+    /// Fits `windows` with `opts`' components and EM settings: without their labels, or,
+    /// given `labels` (each window's component), one component per label fitted to its own
+    /// windows ([`mixture::fit_labelled`], with any number of features).
     pub fn fit(
         windows: &FeatureWindows,
         opts: &MixtureOptions,
+        labels: Option<&[usize]>,
     ) -> Result<(Self, f64, usize, bool)> {
-        if windows.dim == 1 {
-            let f = gmm::fit(&windows.values, &opts.em)?;
-            Ok((
-                Self::OneFeature(f.model),
-                f.log_likelihood,
-                f.iterations,
-                f.converged,
-            ))
-        } else {
-            let f = mixture::fit(&windows.values, windows.dim, opts)?;
-            Ok((
+        let several = |f: mixture::MixtureFit| {
+            (
                 Self::Several(f.model),
                 f.log_likelihood,
                 f.iterations,
                 f.converged,
-            ))
+            )
+        };
+        match labels {
+            Some(labels) => {
+                mixture::fit_labelled(&windows.values, windows.dim, labels, opts).map(several)
+            }
+            None if windows.dim == 1 => {
+                let f = gmm::fit(&windows.values, &opts.em)?;
+                Ok((
+                    Self::OneFeature(f.model),
+                    f.log_likelihood,
+                    f.iterations,
+                    f.converged,
+                ))
+            }
+            None => mixture::fit(&windows.values, windows.dim, opts).map(several),
         }
     }
 
@@ -161,18 +170,38 @@ pub fn read_stored(path: &std::path::Path) -> anyhow::Result<Vec<StoredKinds>> {
     Ok(stored.windows)
 }
 
-/// Fits `windows` (labels unused), names the components after the recording's `kinds` by
+/// Fits `windows` as `how` says, names the components after the recording's `kinds` by
 /// the labels, and scores every window; those farther than `beyond` σ from every component
-/// are unknown.
+/// are unknown. A labelled fit takes one component per kind.
 pub fn fit_and_name(
     windows: &FeatureWindows,
     window: usize,
     features: &[WindowFeature],
     kinds: &[AreaKind],
-    opts: &MixtureOptions,
+    (opts, how): (&MixtureOptions, KindsFit),
     beyond: f64,
 ) -> Result<KindsResult> {
-    let (model, log_likelihood, iterations, converged) = Classifier::fit(windows, opts)?;
+    let labels: Option<Vec<usize>> = match how {
+        KindsFit::Em => None,
+        KindsFit::Labelled if opts.em.components != kinds.len() => {
+            return Err(EstimatorError::InvalidModel {
+                reason: format!(
+                    "a labelled fit takes one component per kind: {} kinds, {} components",
+                    kinds.len(),
+                    opts.em.components
+                ),
+            });
+        }
+        KindsFit::Labelled => Some(
+            windows
+                .kinds
+                .iter()
+                .map(|k| kinds.iter().position(|x| x == k).unwrap_or(kinds.len()))
+                .collect(),
+        ),
+    };
+    let (model, log_likelihood, iterations, converged) =
+        Classifier::fit(windows, opts, labels.as_deref())?;
     let classes = classes(&model, windows, beyond);
     let row = |k: &AreaKind| kinds.iter().position(|x| x == k);
     let mut by_component = vec![vec![0u64; model.components()]; kinds.len()];
@@ -408,7 +437,7 @@ mod tests {
                 window,
                 &[WindowFeature::PitchStd],
                 &kinds,
-                &opts,
+                (&opts, KindsFit::Em),
                 0.0,
             )
             .expect("kinds");
@@ -476,5 +505,60 @@ mod tests {
         // Recalls 100/110 and 90/90: the mean, not the pooled 190/200.
         let m = macro_accuracy(&by_kind);
         assert!((m - 0.5 * (100.0 / 110.0 + 1.0)).abs() < 1e-12, "{m}");
+    }
+
+    #[test]
+    fn a_labelled_fit_names_each_kind_after_its_own_component() {
+        // Slope windows tilted and still, gravel ones level and shaking, flat ones neither.
+        let mut rng = common::Rng::new(9);
+        let mut windows = FeatureWindows {
+            dim: 2,
+            values: Vec::new(),
+            kinds: Vec::new(),
+            stationary: 0,
+        };
+        for (kind, tilt, shake) in [
+            (AreaKind::Gravel, 0.0, 5.0),
+            (AreaKind::Flat, 0.0, 0.0),
+            (AreaKind::Slope, 5.0, 0.0),
+        ] {
+            for _ in 0..300 {
+                windows
+                    .values
+                    .extend([tilt + rng.normal(), shake + rng.normal()]);
+                windows.kinds.push(kind);
+            }
+        }
+        let kinds = [AreaKind::Flat, AreaKind::Slope, AreaKind::Gravel];
+        let features = [WindowFeature::MeanTilt, WindowFeature::PitchHighPass];
+        let cfg = common::config::EstimatorConfig::default();
+        let opts = MixtureOptions::from_config(&cfg, 3, 1);
+        let r = fit_and_name(
+            &windows,
+            30,
+            &features,
+            &kinds,
+            (&opts, KindsFit::Labelled),
+            0.0,
+        )
+        .expect("labelled");
+        assert!(r.macro_accuracy > 0.99, "{:?}", r.confusion);
+        let mut named = r.component_kinds.clone();
+        named.sort_by_key(|k| k.code());
+        assert_eq!(
+            named,
+            vec![AreaKind::Flat, AreaKind::Slope, AreaKind::Gravel]
+        );
+        let two = MixtureOptions::from_config(&cfg, 2, 1);
+        let err = fit_and_name(
+            &windows,
+            30,
+            &features,
+            &kinds,
+            (&two, KindsFit::Labelled),
+            0.0,
+        )
+        .expect_err("two components for three kinds");
+        assert!(err.to_string().contains("one component per kind"), "{err}");
     }
 }

@@ -278,6 +278,70 @@ fn cholesky(a: &[f64], d: usize) -> Option<Vec<f64>> {
 /// Errors on non-finite data, more than 16 features, fewer points than components, a
 /// constant feature, or when every restart lost a component.
 pub fn fit(data: &[f64], dim: usize, opts: &MixtureOptions) -> Result<MixtureFit> {
+    let (z, centre, scale) = standardised(data, dim, opts.em.components)?;
+    let (mut fit, ok) = crate::gmm::best_of_restarts(
+        opts.em.restarts,
+        opts.em.seed,
+        |rng| {
+            seed_components(&z, dim, opts, rng)
+                .and_then(|m| run_em(&z, dim, m, opts, (&centre, &scale)))
+        },
+        |f| f.log_likelihood,
+    )?;
+    fit.restarts_ok = ok;
+    Ok(fit)
+}
+
+/// The mixture whose component `c` is the Gaussian of the points labelled `c` (`labels`, one
+/// per point, each below `opts`' components): one M-step on the labels, no EM
+/// (`estimator.kinds-fit = "labelled"`). Components are stored sorted as every mixture's, so
+/// which component is which label is for [`crate::kinds::assign`] to name. Errors as
+/// [`fit`], and on a label out of range or one without points.
+pub fn fit_labelled(
+    data: &[f64],
+    dim: usize,
+    labels: &[usize],
+    opts: &MixtureOptions,
+) -> Result<MixtureFit> {
+    let k = opts.em.components;
+    let (z, centre, scale) = standardised(data, dim, k)?;
+    let n = z.len() / dim;
+    if labels.len() != n {
+        return Err(EstimatorError::InvalidModel {
+            reason: format!("{} labels for {n} points", labels.len()),
+        });
+    }
+    let mut resp = vec![0.0; n * k];
+    for (i, &label) in labels.iter().enumerate() {
+        if label >= k {
+            return Err(EstimatorError::InvalidModel {
+                reason: format!("label {label} of point {i} is not one of {k} components"),
+            });
+        }
+        resp[i * k + label] = 1.0;
+    }
+    let p = m_step(&z, dim, &resp, opts)?.params;
+    let model = Mixture::new(centre, scale, p.covariance, p.weights, p.means, p.covs)?;
+    let mut joint = vec![0.0; k];
+    let log_likelihood = z
+        .chunks_exact(dim)
+        .map(|x| model.joint_log(x, &mut joint))
+        .sum();
+    Ok(MixtureFit {
+        model,
+        log_likelihood,
+        iterations: 0,
+        converged: true,
+        restarts_ok: 1,
+    })
+}
+
+/// `data` checked and standardised, with the centre and scale it was standardised by.
+fn standardised(
+    data: &[f64],
+    dim: usize,
+    components: usize,
+) -> Result<(Vec<f64>, Vec<f64>, Vec<f64>)> {
     if dim == 0 || dim > 16 || !data.len().is_multiple_of(dim) {
         return Err(EstimatorError::InvalidModel {
             reason: format!(
@@ -290,11 +354,8 @@ pub fn fit(data: &[f64], dim: usize, opts: &MixtureOptions) -> Result<MixtureFit
         return Err(EstimatorError::NonFinite { index, value });
     }
     let n = data.len() / dim;
-    if n < opts.em.components.max(2) {
-        return Err(EstimatorError::TooFewPoints {
-            n,
-            components: opts.em.components,
-        });
+    if n < components.max(2) {
+        return Err(EstimatorError::TooFewPoints { n, components });
     }
     let (centre, scale) = standardisation(data, dim)?;
     let z: Vec<f64> = data
@@ -305,17 +366,7 @@ pub fn fit(data: &[f64], dim: usize, opts: &MixtureOptions) -> Result<MixtureFit
                 .collect::<Vec<_>>()
         })
         .collect();
-    let (mut fit, ok) = crate::gmm::best_of_restarts(
-        opts.em.restarts,
-        opts.em.seed,
-        |rng| {
-            seed_components(&z, dim, opts, rng)
-                .and_then(|m| run_em(&z, dim, m, opts, (&centre, &scale)))
-        },
-        |f| f.log_likelihood,
-    )?;
-    fit.restarts_ok = ok;
-    Ok(fit)
+    Ok((z, centre, scale))
 }
 
 /// Each feature's mean and (population) std; a constant feature cannot be standardised.

@@ -65,6 +65,10 @@ pub struct EstimatorConfig {
     pub features: Vec<WindowFeature>,
     /// The several-feature mixture's covariances: "full" or "diagonal". Default "full".
     pub covariance: Covariance,
+    /// How `estimator-proc kinds` fits its mixture: "em", EM without the labels, each
+    /// component then named after a kind by them, or "labelled", one component per kind fitted
+    /// to that kind's windows alone (interpretation). Default "em".
+    pub kinds_fit: KindsFit,
     /// A window farther than this many standard deviations (Mahalanobis) from every
     /// component is "unknown" rather than any kind; 0 classifies every window. [0, 100].
     /// Default 0.
@@ -118,6 +122,19 @@ pub enum Covariance {
     Full,
     /// Variances only: d parameters per component, for few windows or many features.
     Diagonal,
+}
+
+/// How the several-kind mixture is fitted to a labelled recording.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum KindsFit {
+    /// EM over every window, labels unused; the labels only name the components.
+    #[default]
+    Em,
+    /// Each kind's component is the Gaussian of its own windows: weight, mean and covariance,
+    /// no EM (quadratic discriminant analysis). A kind whose windows are not one Gaussian
+    /// still gets one component, so no restart can split a kind or merge two.
+    Labelled,
 }
 
 /// The value of a window the terrain mixture sees (SPEC S7: the window's std of sin θx).
@@ -175,6 +192,7 @@ impl Default for EstimatorConfig {
             signal: AttitudeSource::Truth,
             features: vec![WindowFeature::PitchStd],
             covariance: Covariance::Full,
+            kinds_fit: KindsFit::Em,
             unknown_beyond: 0.0,
             kinds_model: None,
         }

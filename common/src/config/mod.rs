@@ -22,7 +22,7 @@ mod terrain;
 #[cfg(test)]
 mod tests;
 
-pub use estimator::{Covariance, EstimatorConfig, MixtureFeature, WindowFeature};
+pub use estimator::{Covariance, EstimatorConfig, KindsFit, MixtureFeature, WindowFeature};
 pub use external::ExternalConfig;
 pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};
 pub use model_file::{OfflineKinds, OfflineMixture};

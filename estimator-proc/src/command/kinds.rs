@@ -18,7 +18,7 @@ use crate::report::{create_dir, to_json, write_file};
 use crate::{figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
-use common::config::WindowFeature;
+use common::config::{KindsFit, WindowFeature};
 use serde::Serialize;
 use std::path::PathBuf;
 
@@ -48,6 +48,7 @@ struct KindsReport {
     seed: u64,
     warmup_ticks: usize,
     covariance: common::config::Covariance,
+    kinds_fit: KindsFit,
     unknown_beyond: f64,
     windows: Vec<KindsResult>,
     /// At the online window, the macro accuracy without each feature in turn.
@@ -85,8 +86,15 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     let names: Vec<&'static str> = cfg.features.iter().map(|f| f.name()).collect();
     tracing::info!(rows = rows.len(), series = series.len(), kinds = kinds.len(), features = ?names, "telemetry read");
     let fit = |windows: &FeatureWindows, w: usize, features: &[WindowFeature]| {
-        kinds::fit_and_name(windows, w, features, &kinds, &opts, cfg.unknown_beyond)
-            .with_context(|| format!("window {w}"))
+        kinds::fit_and_name(
+            windows,
+            w,
+            features,
+            &kinds,
+            (&opts, cfg.kinds_fit),
+            cfg.unknown_beyond,
+        )
+        .with_context(|| format!("window {w}"))
     };
     let mut results = Vec::new();
     let mut ablation = Vec::new();
@@ -141,6 +149,7 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
         seed,
         warmup_ticks: cfg.warmup_ticks,
         covariance: cfg.covariance,
+        kinds_fit: cfg.kinds_fit,
         unknown_beyond: cfg.unknown_beyond,
         windows: results,
         ablation,
@@ -167,7 +176,11 @@ fn to_markdown(r: &KindsReport) -> String {
         return String::new();
     };
     let named_by = r.model.as_ref().map_or_else(
-        || "Components named by the labels (Hungarian).".to_string(),
+        || match r.kinds_fit {
+            KindsFit::Em => "Mixture fitted by EM without the labels, its components named by them (Hungarian).",
+            KindsFit::Labelled => "One component fitted to each kind's windows, named by the labels (Hungarian).",
+        }
+        .to_string(),
         |m| format!("Classifiers and their naming read from `{m}`."),
     );
     let mut md = format!(

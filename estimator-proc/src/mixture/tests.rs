@@ -152,3 +152,65 @@ fn a_model_survives_a_round_trip_through_json() {
     let e = serde_json::from_str::<Mixture>(&broken).expect_err("negative weight");
     assert!(e.to_string().contains("invalid mixture"), "{e}");
 }
+
+#[test]
+fn a_labelled_fit_is_each_labels_own_gaussian() {
+    // Label 0: a 2 × 2 square around (1, 1), variance 1 on each axis, no covariance. Label 1:
+    // the same square around (11, 1) plus its centre: mean (11, 1), variance 4/5.
+    let square = |cx: f64| [cx - 1.0, 0.0, cx + 1.0, 0.0, cx - 1.0, 2.0, cx + 1.0, 2.0];
+    let mut data = square(1.0).to_vec();
+    data.extend(square(11.0));
+    data.extend([11.0, 1.0]);
+    let labels = [0, 0, 0, 0, 1, 1, 1, 1, 1];
+    let fit = fit_labelled(&data, 2, &labels, &opts(2, Covariance::Full)).expect("fit");
+    let m = &fit.model;
+    let raw_mean = |c: usize, f: usize| m.centre[f] + m.scale[f] * m.means[c][f];
+    let raw_cov = |c: usize, a: usize, b: usize| m.covs[c][a * 2 + b] * m.scale[a] * m.scale[b];
+    // The variance floor (1e-10 in standardised units) adds a few 1e-9 to each raw variance.
+    let close = |x: f64, y: f64| (x - y).abs() < 1e-7;
+    // Stored sorted by the first feature's mean: label 0 first.
+    for (c, (mx, var, weight)) in [(1.0, 1.0, 4.0 / 9.0), (11.0, 0.8, 5.0 / 9.0)]
+        .into_iter()
+        .enumerate()
+    {
+        assert!(
+            close(raw_mean(c, 0), mx) && close(raw_mean(c, 1), 1.0),
+            "{c}"
+        );
+        assert!(
+            close(raw_cov(c, 0, 0), var) && close(raw_cov(c, 1, 1), var),
+            "{c}"
+        );
+        assert!(close(raw_cov(c, 0, 1), 0.0), "{c}");
+        assert!(close(m.weights[c], weight), "{c}");
+    }
+    assert_eq!((fit.iterations, fit.restarts_ok), (0, 1));
+    let bad = fit_labelled(
+        &data,
+        2,
+        &[0, 0, 0, 0, 1, 1, 1, 1, 2],
+        &opts(2, Covariance::Full),
+    );
+    assert!(bad.is_err());
+}
+
+#[test]
+fn a_labelled_fit_keeps_a_class_of_two_clusters_in_one_component() {
+    // Label 0 is two clusters 12σ apart, label 1 one cluster midway between them. Each
+    // label's one Gaussian (σx² ≈ 37 and 1 about the same mean) draws the boundary at
+    // x² (1/2 − 1/74) = ½ ln 37, |x| ≈ 1.93: about 5.4 % of label 1 falls beyond it and
+    // none of label 0, a macro accuracy near 97.3 %.
+    let mut rng = common::Rng::new(3);
+    let (mut data, mut labels) = (Vec::new(), Vec::new());
+    for (x, label) in [(-6.0, 0), (6.0, 0), (0.0, 1), (0.0, 1)] {
+        for _ in 0..500 {
+            data.extend([x + rng.normal(), rng.normal()]);
+            labels.push(label);
+        }
+    }
+    let fit = fit_labelled(&data, 2, &labels, &opts(2, Covariance::Full)).expect("fit");
+    let c = confusion(&fit.model, &data, &labels, 2);
+    let by_kind = kinds::kind_confusion(&c, &kinds::assign(&c));
+    let accuracy = kinds::macro_accuracy(&by_kind);
+    assert!(accuracy > 0.96, "{accuracy} {by_kind:?}");
+}
