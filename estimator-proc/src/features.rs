@@ -19,6 +19,13 @@ pub struct Wheels {
     pub dt: f64,
 }
 
+impl Wheels {
+    /// The path a decision step at wheel command `command` (rad/s) asks for, metres.
+    pub fn rim_path(self, command: f64) -> f64 {
+        command.abs() * self.radius * self.dt
+    }
+}
+
 /// Every counted window's features (row-major, `dim` per window) and true kind.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct FeatureWindows {
@@ -149,11 +156,7 @@ fn column(
 /// The path the wheels' mean command asked for in each full window: |command| · r · dt over
 /// the moves into ticks t − w + 2 ..= t, as the rolling path counts them.
 fn commanded_path(s: &Series, w: usize, wheels: Wheels) -> Vec<f64> {
-    let commanded: Vec<f64> = s
-        .command
-        .iter()
-        .map(|c| c.abs() * wheels.radius * wheels.dt)
-        .collect();
+    let commanded: Vec<f64> = s.command.iter().map(|&c| wheels.rim_path(c)).collect();
     window_sums(&commanded[1.min(commanded.len())..], 1, w)
 }
 

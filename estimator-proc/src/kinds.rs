@@ -532,16 +532,18 @@ mod tests {
         let kinds = [AreaKind::Flat, AreaKind::Slope, AreaKind::Gravel];
         let features = [WindowFeature::MeanTilt, WindowFeature::PitchHighPass];
         let cfg = common::config::EstimatorConfig::default();
-        let opts = MixtureOptions::from_config(&cfg, 3, 1);
-        let r = fit_and_name(
-            &windows,
-            30,
-            &features,
-            &kinds,
-            (&opts, KindsFit::Labelled),
-            0.0,
-        )
-        .expect("labelled");
+        let labelled = |components| {
+            let opts = MixtureOptions::from_config(&cfg, components, 1);
+            fit_and_name(
+                &windows,
+                30,
+                &features,
+                &kinds,
+                (&opts, KindsFit::Labelled),
+                0.0,
+            )
+        };
+        let r = labelled(3).expect("labelled");
         assert!(r.macro_accuracy > 0.99, "{:?}", r.confusion);
         let mut named = r.component_kinds.clone();
         named.sort_by_key(|k| k.code());
@@ -549,16 +551,7 @@ mod tests {
             named,
             vec![AreaKind::Flat, AreaKind::Slope, AreaKind::Gravel]
         );
-        let two = MixtureOptions::from_config(&cfg, 2, 1);
-        let err = fit_and_name(
-            &windows,
-            30,
-            &features,
-            &kinds,
-            (&two, KindsFit::Labelled),
-            0.0,
-        )
-        .expect_err("two components for three kinds");
+        let err = labelled(2).expect_err("two components for three kinds");
         assert!(err.to_string().contains("one component per kind"), "{err}");
     }
 }

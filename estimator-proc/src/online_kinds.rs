@@ -187,8 +187,12 @@ impl KindsEstimator {
         };
         // The moves into every tick but the first, as the rolling path counts them.
         let driven = || {
-            let turned: f64 = state.ticks.iter().skip(1).map(|t| t.command.abs()).sum();
-            turned * wheels.radius * wheels.dt
+            let rim = state
+                .ticks
+                .iter()
+                .skip(1)
+                .map(|t| wheels.rim_path(t.command));
+            rim.sum::<f64>()
         };
         if !features::counts(path, if slip { driven() } else { 0.0 }, min_travel) {
             self.stationary += 1;

@@ -6,22 +6,32 @@ use common::config::{Area, AreaKind, SimConfig, TerrainConfig, WheelModel};
 use sim_proc::env::{SharedTerrain, build_world};
 use sim_proc::terrain::Terrain;
 
+/// A floor of `areas` alone: the mixed course every world has is a plain strip at
+/// `mixed_area`, crossing no kind.
+fn areas_only(areas: Vec<Area>, mixed_area: common::config::Rect) -> TerrainConfig {
+    TerrainConfig {
+        areas,
+        mixed_area,
+        mixed_parts: Vec::new(),
+        ..TerrainConfig::default()
+    }
+}
+
 /// A world with one slope area, x ∈ [0, 2], z ∈ [0, 2], of `incline_deg` and `friction`, and
 /// robots with `wheels`.
 fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, SharedTerrain) {
+    let slope_area = Area {
+        kind: AreaKind::Slope,
+        x: [0.0, 2.0],
+        z: [0.0, 2.0],
+    };
+    let mixed = common::config::Rect {
+        x: [0.0, 2.0],
+        z: [2.5, 3.0],
+    };
     let mut terrain = TerrainConfig {
-        areas: vec![Area {
-            kind: AreaKind::Slope,
-            x: [0.0, 2.0],
-            z: [0.0, 2.0],
-        }],
-        mixed_area: common::config::Rect {
-            x: [0.0, 2.0],
-            z: [2.5, 3.0],
-        },
-        mixed_parts: Vec::new(),
         flat_relief: 0.0,
-        ..TerrainConfig::default()
+        ..areas_only(vec![slope_area], mixed)
     };
     terrain.slope.incline_deg = incline_deg;
     terrain.slope.friction = friction;
@@ -102,18 +112,18 @@ fn kinds_cfg(kind: AreaKind) -> SimConfig {
     };
     let mut cfg = SimConfig {
         terrain: TerrainConfig {
-            areas: vec![
-                area(AreaKind::Flat, 0.0),
-                area(AreaKind::Rough, 2.5),
-                area(AreaKind::Gravel, 5.0),
-            ],
-            mixed_area: common::config::Rect {
-                x: [0.0, 6.5],
-                z: [3.5, 4.5],
-            },
-            mixed_parts: Vec::new(),
             cell_size: 0.01,
-            ..TerrainConfig::default()
+            ..areas_only(
+                vec![
+                    area(AreaKind::Flat, 0.0),
+                    area(AreaKind::Rough, 2.5),
+                    area(AreaKind::Gravel, 5.0),
+                ],
+                common::config::Rect {
+                    x: [0.0, 6.5],
+                    z: [3.5, 4.5],
+                },
+            )
         },
         ..SimConfig::default()
     };
@@ -175,18 +185,18 @@ fn gravel_shakes_the_pitch_at_higher_frequencies_than_rough_ground() {
 fn straight_run(kind: AreaKind, command: f32) -> (f64, [f64; 2]) {
     let mut cfg = SimConfig {
         terrain: TerrainConfig {
-            areas: vec![Area {
-                kind,
-                x: [0.0, 6.0],
-                z: [0.0, 6.0],
-            }],
-            mixed_area: common::config::Rect {
-                x: [0.0, 6.0],
-                z: [7.0, 8.0],
-            },
-            mixed_parts: Vec::new(),
             cell_size: 0.02,
-            ..TerrainConfig::default()
+            ..areas_only(
+                vec![Area {
+                    kind,
+                    x: [0.0, 6.0],
+                    z: [0.0, 6.0],
+                }],
+                common::config::Rect {
+                    x: [0.0, 6.0],
+                    z: [7.0, 8.0],
+                },
+            )
         },
         ..SimConfig::default()
     };
