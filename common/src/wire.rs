@@ -156,6 +156,9 @@ pub const EVENT_TERMINATED: u8 = 1;
 pub const EVENT_TRUNCATED: u8 = 2;
 pub const EVENT_SUCCESS: u8 = 4;
 pub const EVENT_FAULT: u8 = 8;
+/// The ending put the robot somewhere new (a respawn or a course's next leg): the tick's pose
+/// does not follow from the last tick's.
+pub const EVENT_PLACED: u8 = 16;
 
 /// One env at one tick.
 #[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]

@@ -8,10 +8,11 @@ use common::ipc::CONTROL_SHUTDOWN;
 use common::policy::MAX_HIDDEN;
 use common::rollout::Transition;
 use common::wire::{
-    CLASS_UNKNOWN, EVENT_FAULT, EVENT_SUCCESS, EVENT_TERMINATED, EVENT_TRUNCATED, EnvTick,
-    GYM_CLOSE, GYM_OK, GYM_READY, GYM_REFUSED, GYM_RESET, GYM_SEEDED, GYM_STEP, GymActHeader,
-    GymEnvStep, GymStepHeader, HostsHeader, PolicyHeader, RolloutHeader, SWAP_MESSAGE_BYTES,
-    SWAP_PATH_BYTES, SimHost, SwapReply, SwapRequest, TerrainEstimate, TerrainHeader, TickHeader,
+    CLASS_UNKNOWN, EVENT_FAULT, EVENT_PLACED, EVENT_SUCCESS, EVENT_TERMINATED, EVENT_TRUNCATED,
+    EnvTick, GYM_CLOSE, GYM_OK, GYM_READY, GYM_REFUSED, GYM_RESET, GYM_SEEDED, GYM_STEP,
+    GymActHeader, GymEnvStep, GymStepHeader, HostsHeader, PolicyHeader, RolloutHeader,
+    SWAP_MESSAGE_BYTES, SWAP_PATH_BYTES, SimHost, SwapReply, SwapRequest, TerrainEstimate,
+    TerrainHeader, TickHeader,
 };
 use common::{ACT_DIM, OBS_DIM};
 use iceoryx2::prelude::ZeroCopySend;
@@ -189,6 +190,7 @@ fn expected() -> Value {
             "EVENT_TRUNCATED": EVENT_TRUNCATED,
             "EVENT_SUCCESS": EVENT_SUCCESS,
             "EVENT_FAULT": EVENT_FAULT,
+            "EVENT_PLACED": EVENT_PLACED,
             "CLASS_UNKNOWN": CLASS_UNKNOWN,
             "SWAP_PATH_BYTES": SWAP_PATH_BYTES,
             "SWAP_MESSAGE_BYTES": SWAP_MESSAGE_BYTES,

@@ -20,6 +20,7 @@ EVENT_TERMINATED = 1
 EVENT_TRUNCATED = 2
 EVENT_SUCCESS = 4
 EVENT_FAULT = 8
+EVENT_PLACED = 16
 
 #: `TerrainEstimate.class` before the estimator has seen enough ticks.
 CLASS_UNKNOWN = 255

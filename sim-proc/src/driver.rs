@@ -174,7 +174,8 @@ impl Driver {
                 } else {
                     0
                 };
-                kind | success | fault
+                let placed = if info.placed { wire::EVENT_PLACED } else { 0 };
+                kind | success | fault | placed
             });
             *t = EnvTick {
                 env: env.id as u32,

@@ -78,6 +78,9 @@ pub struct StepInfo {
     /// (read before a new episode replaces them).
     pub target: [f64; 2],
     pub episode_steps: u32,
+    /// Whether the step's ending put the robot somewhere new (a respawn, or an evaluation
+    /// course's next leg): its pose now does not follow from the last one.
+    pub placed: bool,
 }
 
 /// One env: a physics world, a robot, an area and the current episode.
@@ -96,6 +99,8 @@ pub struct Env {
     /// Seeds leg k of an evaluation course (`EpisodeStart::Course`) as stream k.
     course_seed: u64,
     faults: u64,
+    /// Worlds the robot has been placed in since the first.
+    placements: u64,
     action: [f32; 2],
     /// The IMU and its filter, when [`SimConfig::simulates_imu`].
     sensing: Option<Sensing>,
@@ -132,6 +137,7 @@ impl Env {
             rng,
             course_seed: Rng::derive(seed, COURSE_STREAMS + id as u64).next_u64(),
             faults: 0,
+            placements: 0,
             action: [0.0; 2],
             sensing: cfg
                 .simulates_imu()
@@ -215,6 +221,7 @@ impl Env {
 
     fn place(&mut self, (world, robot): (PhysicsWorld, Robot)) {
         (self.world, self.robot) = (world, robot);
+        self.placements += 1;
         self.placed();
     }
 
@@ -352,6 +359,7 @@ impl Env {
     /// One decision step: clip the action (SPEC S2), run the physics substeps, apply the
     /// episode rules, and start the next episode (respawning if the rules say so).
     pub fn step(&mut self, action: [f32; 2]) -> StepInfo {
+        let placements = self.placements;
         let limit = self.cfg.robot.action_limit as f32;
         self.action = action.map(|a| {
             if a.is_finite() {
@@ -409,6 +417,7 @@ impl Env {
             faults: self.faults,
             target,
             episode_steps,
+            placed: self.placements != placements,
         }
     }
 }
@@ -544,9 +553,11 @@ mod tests {
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut env = Env::new(0, &cfg, &terrain, 4);
         let spot = env.pose().pos;
-        let endings: Vec<_> = (0..20).map(|_| env.step([0.0, 0.0]).ending).collect();
+        let infos: Vec<_> = (0..20).map(|_| env.step([0.0, 0.0])).collect();
+        let endings: Vec<_> = infos.iter().map(|i| i.ending).collect();
         assert!(endings[..19].iter().all(Option::is_none), "{endings:?}");
         assert_eq!(endings[19], Some(Ending::Stalled));
+        assert!(infos[19].placed && !infos[18].placed);
         let moved = env.pose().pos;
         assert!(
             (moved[0] - spot[0]).hypot(moved[2] - spot[2]) > 0.05,
@@ -556,8 +567,12 @@ mod tests {
         let mut goto = GoToController::new(cfg.robot.action_limit);
         let mut successes = 0;
         for _ in 0..1500 {
-            match env.step(goto.act(0, &env.observe())).ending {
-                Some(Ending::Success) => successes += 1,
+            let info = env.step(goto.act(0, &env.observe()));
+            match info.ending {
+                Some(Ending::Success) => {
+                    assert!(!info.placed, "a chained success drives on from where it is");
+                    successes += 1;
+                }
                 Some(Ending::Stalled) => panic!("a driving robot stalled"),
                 _ => {}
             }
@@ -601,6 +616,17 @@ mod tests {
             let (end, start) = ([w[0][2], w[0][3]], [w[1][0], w[1][1]]);
             assert!((end[0] - start[0]).abs() < 1e-6 && (end[1] - start[1]).abs() < 1e-6);
         }
+        // Every leg after the first places the robot anew, success or not.
+        let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
+        let mut env = Env::new(0, &cfg, &terrain, 9);
+        let mut goto = GoToController::new(cfg.robot.action_limit);
+        let ended: Vec<StepInfo> = std::iter::repeat_with(|| env.step(goto.act(0, &env.observe())))
+            .take(2000)
+            .filter(|i| i.ending.is_some())
+            .take(3)
+            .collect();
+        assert_eq!(ended.len(), 3);
+        assert!(ended.iter().all(|i| i.placed));
         // Chained episodes (SPEC S3) start where each robot stands instead.
         cfg.task.episodes = EpisodeStart::Chained;
         let mut goto = GoToController::new(cfg.robot.action_limit);

@@ -46,6 +46,11 @@ pub struct EstimatorConfig {
     /// m/s, [0, 10]; 0 counts every window, as the paper did. Default 0.02 (interpretation:
     /// a quarter of the robot's usual 0.08 m/s, so a window counts once most of it is driven).
     pub min_speed: f64,
+    /// Online: a robot placed somewhere new (a respawn, or an evaluation course's next leg)
+    /// starts a new window, and this many ticks, the placement's own first, are left out
+    /// while the dropped robot settles; meanwhile the env has no estimate and switching keeps
+    /// its slot. 0 ..= 1000. Default 3 (a drop shakes sin θx for about three ticks).
+    pub settle_ticks: usize,
     /// Online: a mixture fitted offline to classify with from the first full window (SPEC
     /// S7): a `results.json` of `estimator-proc analyze`, whose fit for `online-window` is
     /// taken; refits warm-start from it. Without one the first online fit defines the
@@ -195,6 +200,7 @@ impl Default for EstimatorConfig {
             kinds_fit: KindsFit::Em,
             unknown_beyond: 0.0,
             kinds_model: None,
+            settle_ticks: 3,
         }
     }
 }
@@ -220,6 +226,7 @@ impl EstimatorConfig {
         in_range("estimator.tol", self.tol, 1e-15, 1.0)?;
         in_range("estimator.var-floor", self.var_floor, 1e-15, 1.0)?;
         in_range("estimator.min-speed", self.min_speed, 0.0, 10.0)?;
+        count_in("estimator.settle-ticks", self.settle_ticks, 0, 1000)?;
         count_in("estimator.refit-every", self.refit_every, 0, 1_000_000)?;
         count_in("estimator.pool-size", self.pool_size, 10, 10_000_000)?;
         if !(self.stay_prob.is_finite() && (0.0..1.0).contains(&self.stay_prob)) {

@@ -101,6 +101,8 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         )
     };
     let mut out = vec![TerrainEstimate::default(); n];
+    // Ticks each env still leaves out after its robot was placed (`estimator.settle-ticks`).
+    let mut settling = vec![0usize; n];
     let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
     tracing::info!(
         envs = n,
@@ -116,9 +118,20 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
             let h = *sample.user_header();
             for t in sample.payload().iter().filter(|t| (t.env as usize) < n) {
                 let env = t.env as usize;
-                if t.events & wire::EVENT_FAULT != 0 {
-                    // A respawned robot starts a new series: its old window says nothing.
+                if placed(t.events) {
+                    // A robot placed somewhere new starts a new series: its old window says
+                    // nothing about the ground it is on now.
                     est.reset_env(env)?;
+                    out[env] = TerrainEstimate {
+                        env: t.env,
+                        class: wire::CLASS_UNKNOWN,
+                        ..TerrainEstimate::default()
+                    };
+                    settling[env] = cfg.estimator.settle_ticks;
+                }
+                if settling[env] > 0 {
+                    settling[env] -= 1;
+                    continue;
                 }
                 let e = match est.observe(t, cfg.estimator.signal) {
                     Ok(e) => e,
@@ -156,6 +169,13 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Whether a tick's `events` say its robot was put somewhere new: a respawn, a fault's
+/// respawn, or an evaluation course's next leg (the tick's pose does not follow from the
+/// last one's).
+fn placed(events: u8) -> bool {
+    events & (wire::EVENT_PLACED | wire::EVENT_FAULT) != 0
+}
+
 /// Whether an estimate of `class` is right on ground `area` (`AreaKind::code`), or `None`
 /// when it is not scored: an unknown class, or ground other than SPEC S7's flat and rough,
 /// which the two-class estimator cannot name (a slope or gravel would count as "rough").
@@ -169,6 +189,15 @@ fn scores(class: u8, area: u8) -> Option<bool> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_placement_or_a_fault_starts_a_new_series_an_ending_alone_does_not() {
+        assert!(placed(wire::EVENT_TRUNCATED | wire::EVENT_PLACED));
+        assert!(placed(wire::EVENT_TERMINATED | wire::EVENT_FAULT));
+        // A chained episode's success: the robot drives on from where it is.
+        assert!(!placed(wire::EVENT_TERMINATED | wire::EVENT_SUCCESS));
+        assert!(!placed(0));
+    }
 
     #[test]
     fn only_flat_and_rough_ground_is_scored() {
