@@ -195,7 +195,8 @@ pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Res
     let seed = common::Rng::source_seed(cfg.run.seed, args.source);
     let mut fleet = Fleet::new(&cfg.sim, &terrain, seed);
     let mut inbox = Inbox::connect(&bus, seed, !cfg.sim.mean_actions)?;
-    let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n);
+    let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n)
+        .with_leave_dwell(&cfg.sim.leave_dwell);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
     let mut nag = Nag::new(Duration::from_secs(10));
     while inbox.take()?.is_empty() {

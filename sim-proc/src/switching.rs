@@ -5,6 +5,7 @@
 
 use crate::controllers::{Actor, PolicyController};
 use common::config::{Acting, PolicySlot};
+use std::collections::BTreeMap;
 
 /// The sim's policies, one per slot, with the version each acts at.
 pub struct PolicySet {
@@ -74,7 +75,8 @@ impl PolicySet {
 /// Each env's wanted slot under the configured [`Acting`] rule.
 pub struct Switcher {
     fixed: Option<PolicySlot>,
-    dwell: u32,
+    /// Ticks a new estimate must hold before an env leaves each slot (by index).
+    dwell: [u32; PolicySlot::ALL.len()],
     current: Vec<PolicySlot>,
     candidate: Vec<Option<PolicySlot>>,
     held: Vec<u32>,
@@ -85,16 +87,26 @@ impl Switcher {
         let start = acting.fixed().unwrap_or(PolicySlot::General);
         Self {
             fixed: acting.fixed(),
-            dwell: dwell.max(1) as u32,
+            dwell: [dwell.max(1) as u32; PolicySlot::ALL.len()],
             current: vec![start; envs],
             candidate: vec![None; envs],
             held: vec![0; envs],
         }
     }
 
+    /// Leaving a slot named in `leave` takes that many ticks of a new estimate instead of
+    /// the dwell (`sim.leave-dwell`).
+    pub fn with_leave_dwell(mut self, leave: &BTreeMap<PolicySlot, usize>) -> Self {
+        for (slot, &ticks) in leave {
+            self.dwell[slot.index()] = ticks.max(1) as u32;
+        }
+        self
+    }
+
     /// Takes one tick of estimator classes (one per env; unknown classes change nothing) and
     /// returns each env's wanted slot. SPEC S8: the specialist for the estimated terrain,
-    /// after the estimate has held for `dwell` consecutive ticks.
+    /// after the estimate has held for `dwell` consecutive ticks (the slot's leave dwell,
+    /// where it has one).
     pub fn update(&mut self, classes: &[u8]) -> &[PolicySlot] {
         if self.fixed.is_some() {
             return &self.current;
@@ -112,7 +124,7 @@ impl Switcher {
             } else {
                 (self.candidate[i], self.held[i]) = (Some(target), 1);
             }
-            if self.held[i] >= self.dwell {
+            if self.held[i] >= self.dwell[self.current[i].index()] {
                 self.current[i] = target;
                 (self.candidate[i], self.held[i]) = (None, 0);
             }
@@ -128,6 +140,7 @@ impl Switcher {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::AreaKind;
     use common::wire::CLASS_UNKNOWN;
     use common::{ACT_DIM, OBS_DIM, Policy, PolicyLayout};
 
@@ -160,6 +173,27 @@ mod tests {
         assert_eq!(s.update(&[0, 1, 3, 4]), [Flat, Rough, Slope, Gravel]);
         // Code 2 (the mixed course) names no terrain: nothing changes.
         assert_eq!(s.update(&[2, 2, 2, 2]), [Flat, Rough, Slope, Gravel]);
+    }
+
+    /// A slot with a leave dwell is entered after the dwell and left only after its own.
+    #[test]
+    fn a_leave_dwell_holds_its_slot_longer() {
+        use PolicySlot::{Flat, Sand};
+        let leave = BTreeMap::from([(Sand, 4)]);
+        let mut s = Switcher::new(Acting::Switch, 2, 1).with_leave_dwell(&leave);
+        let (flat, sand) = (AreaKind::Flat.code(), AreaKind::Sand.code());
+        let mut seen = Vec::new();
+        for class in [
+            flat, flat, sand, sand, flat, flat, flat, sand, flat, flat, flat, flat,
+        ] {
+            seen.push(s.update(&[class])[0]);
+        }
+        assert_eq!(
+            seen,
+            [
+                Flat, Flat, Flat, Sand, Sand, Sand, Sand, Sand, Sand, Sand, Sand, Flat
+            ]
+        );
     }
 
     #[test]

@@ -3,10 +3,11 @@
 
 use super::range::{count_in, in_range, invalid};
 use super::{
-    Acting, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, RobotConfig, TaskConfig,
-    TerrainConfig,
+    Acting, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, PolicySlot, RobotConfig,
+    TaskConfig, TerrainConfig,
 };
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 
 /// The longest physics step a simulated IMU works with, seconds: it samples once per step,
 /// and below 50 Hz its attitude filter falls behind the chassis on rough ground.
@@ -111,6 +112,10 @@ pub struct SimConfig {
     pub external: ExternalConfig,
     /// Switching: ticks a new terrain estimate must hold before an env changes policy. 1 ..= 10000. Default 10.
     pub switch_dwell: usize,
+    /// Switching, beyond SPEC S8: ticks a new estimate must hold before an env leaves the
+    /// named slots' policies, where leaving a cautious one by mistake costs more than keeping
+    /// it (e.g. `{ sand = 30 }`). Each 1 ..= 10000; other slots use `switch-dwell`. Default none.
+    pub leave_dwell: BTreeMap<PolicySlot, usize>,
     /// Act with each policy's mean action instead of a sample (evaluation; the rollouts'
     /// log-probabilities are then not those of the actions). Default false.
     pub mean_actions: bool,
@@ -148,6 +153,7 @@ impl Default for SimConfig {
             acting: Acting::General,
             external: ExternalConfig::default(),
             switch_dwell: 10,
+            leave_dwell: BTreeMap::new(),
             mean_actions: false,
             telemetry_notify_us: 1000,
             physics_dt: 1.0 / 30.0,
@@ -262,6 +268,17 @@ impl SimConfig {
             }
         }
         count_in("sim.switch-dwell", self.switch_dwell, 1, 10_000)?;
+        if let Some((slot, ticks)) = self
+            .leave_dwell
+            .iter()
+            .find(|&(_, &t)| !(1..=10_000).contains(&t))
+        {
+            return Err(invalid(
+                "sim.leave-dwell",
+                ticks,
+                format!("{}: must be in [1, 10000]", slot.name()),
+            ));
+        }
         count_in(
             "sim.telemetry-notify-us",
             self.telemetry_notify_us,
