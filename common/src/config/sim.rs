@@ -276,7 +276,7 @@ impl SimConfig {
             return Err(invalid(
                 "sim.leave-dwell",
                 ticks,
-                format!("{}: must be in [1, 10000]", slot.name()),
+                format!("for {}, must be in [1, 10000]", slot.name()),
             ));
         }
         count_in(

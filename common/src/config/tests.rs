@@ -60,6 +60,13 @@ fn out_of_range_names_the_field() {
         e.to_string().contains("reproduce.specialist-candidates"),
         "{e}"
     );
+    let e = parse("[sim]\nleave-dwell = { sand = 0 }\n").expect_err("range");
+    assert_eq!(
+        e.to_string(),
+        "config field `sim.leave-dwell` = 0: for sand, must be in [1, 10000]"
+    );
+    let e = parse("[sim]\nleave-dwell = { dune = 5 }\n").expect_err("unknown slot");
+    assert!(e.to_string().contains("dune"), "{e}");
     let e = parse("[sim.task]\nepisodes = \"reset\"\n").expect_err("unknown start");
     assert!(
         e.to_string().contains("chained") && e.to_string().contains("course"),
