@@ -178,7 +178,7 @@ mod tests {
     /// A slot with a leave dwell is entered after the dwell and left only after its own.
     #[test]
     fn a_leave_dwell_holds_its_slot_longer() {
-        use PolicySlot::{Flat, Sand};
+        use PolicySlot::{Flat, General, Sand};
         let leave = BTreeMap::from([(Sand, 4)]);
         let mut s = Switcher::new(Acting::Switch, 2, 1).with_leave_dwell(&leave);
         let (flat, sand) = (AreaKind::Flat.code(), AreaKind::Sand.code());
@@ -191,7 +191,7 @@ mod tests {
         assert_eq!(
             seen,
             [
-                Flat, Flat, Flat, Sand, Sand, Sand, Sand, Sand, Sand, Sand, Sand, Flat
+                General, Flat, Flat, Sand, Sand, Sand, Sand, Sand, Sand, Sand, Sand, Flat
             ]
         );
     }
