@@ -101,8 +101,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         )
     };
     let mut out = vec![TerrainEstimate::default(); n];
-    // Ticks each env still leaves out after its robot was placed (`estimator.settle-ticks`).
-    let mut settling = vec![0usize; n];
+    let mut settling = Settling::new(cfg.estimator.settle_ticks, n);
     let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
     tracing::info!(
         envs = n,
@@ -118,7 +117,8 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
             let h = *sample.user_header();
             for t in sample.payload().iter().filter(|t| (t.env as usize) < n) {
                 let env = t.env as usize;
-                if placed(t.events) {
+                let (starts, read) = settling.tick(env, t.events);
+                if starts {
                     // A robot placed somewhere new starts a new series: its old window says
                     // nothing about the ground it is on now.
                     est.reset_env(env)?;
@@ -127,10 +127,8 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
                         class: wire::CLASS_UNKNOWN,
                         ..TerrainEstimate::default()
                     };
-                    settling[env] = cfg.estimator.settle_ticks;
                 }
-                if settling[env] > 0 {
-                    settling[env] -= 1;
+                if !read {
                     continue;
                 }
                 let e = match est.observe(t, cfg.estimator.signal) {
@@ -169,11 +167,35 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Whether a tick's `events` say its robot was put somewhere new: a respawn, a fault's
-/// respawn, or an evaluation course's next leg (the tick's pose does not follow from the
-/// last one's).
-fn placed(events: u8) -> bool {
-    events & (wire::EVENT_PLACED | wire::EVENT_FAULT) != 0
+/// Which ticks start a new series and which are read: a robot put somewhere new (a respawn, a
+/// fault's respawn, or an evaluation course's next leg) starts one, and its first `ticks`
+/// ticks, the placement's own included, are left out while it settles
+/// (`estimator.settle-ticks`).
+struct Settling {
+    ticks: usize,
+    /// Ticks each env still leaves out.
+    left: Vec<usize>,
+}
+
+impl Settling {
+    fn new(ticks: usize, envs: usize) -> Self {
+        Self {
+            ticks,
+            left: vec![0; envs],
+        }
+    }
+
+    /// For env `env`'s tick with `events`: whether it starts a new series, and whether the
+    /// estimator reads it.
+    fn tick(&mut self, env: usize, events: u8) -> (bool, bool) {
+        let starts = events & (wire::EVENT_PLACED | wire::EVENT_FAULT) != 0;
+        if starts {
+            self.left[env] = self.ticks;
+        }
+        let read = self.left[env] == 0;
+        self.left[env] = self.left[env].saturating_sub(1);
+        (starts, read)
+    }
 }
 
 /// Whether an estimate of `class` is right on ground `area` (`AreaKind::code`), or `None`
@@ -191,12 +213,34 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_placement_or_a_fault_starts_a_new_series_an_ending_alone_does_not() {
-        assert!(placed(wire::EVENT_TRUNCATED | wire::EVENT_PLACED));
-        assert!(placed(wire::EVENT_TERMINATED | wire::EVENT_FAULT));
+    fn a_placement_or_a_fault_starts_a_new_series_and_its_settling_ticks_are_not_read() {
+        let mut s = Settling::new(2, 2);
+        let placed = wire::EVENT_TRUNCATED | wire::EVENT_PLACED;
+        let seen: Vec<_> = [0, placed, 0, 0, 0].iter().map(|&e| s.tick(0, e)).collect();
+        assert_eq!(
+            seen,
+            [
+                (false, true),
+                (true, false),
+                (false, false),
+                (false, true),
+                (false, true)
+            ]
+        );
+        // A fault's respawn starts one too; the other env never noticed.
+        assert_eq!(
+            s.tick(0, wire::EVENT_TERMINATED | wire::EVENT_FAULT),
+            (true, false)
+        );
+        assert_eq!(s.tick(1, 0), (false, true));
         // A chained episode's success: the robot drives on from where it is.
-        assert!(!placed(wire::EVENT_TERMINATED | wire::EVENT_SUCCESS));
-        assert!(!placed(0));
+        let mut s = Settling::new(0, 1);
+        assert_eq!(
+            s.tick(0, wire::EVENT_TERMINATED | wire::EVENT_SUCCESS),
+            (false, true)
+        );
+        // No settling: the placement's own tick is read, in the new series.
+        assert_eq!(s.tick(0, placed), (true, true));
     }
 
     #[test]
