@@ -35,8 +35,9 @@ pub struct ServeArgs {
     pub checkpoint: Option<PathBuf>,
     /// Warm start: take the actor, critic and observation statistics of this checkpoint file
     /// but start counters, optimizer, learning-rate schedule and RNG afresh (e.g. the general
-    /// model from the flat model). Its network must match `ppo.hidden`. Ignored when the run
-    /// directory already has checkpoints: a restarted learner resumes those.
+    /// model from the flat model), at `run.init-learning-rate` where set. Its network must
+    /// match `ppo.hidden`. Ignored when the run directory already has checkpoints: a
+    /// restarted learner resumes those.
     #[arg(long, conflicts_with = "checkpoint")]
     pub init_from: Option<PathBuf>,
     /// Only check that this learner can start (config, checkpoint, network shape), print
@@ -189,6 +190,18 @@ fn publish(
     Ok(())
 }
 
+/// The config a learner trains with: one given `--init-from` (also once it resumes its own
+/// checkpoints) at `run.init-learning-rate` where that is set.
+fn learner_config(cfg: &Config, args: &ServeArgs) -> Config {
+    let mut cfg = cfg.clone();
+    if args.init_from.is_some()
+        && let Some(lr) = cfg.run.init_learning_rate
+    {
+        cfg.ppo.learning_rate = lr;
+    }
+    cfg
+}
+
 /// The learner to start with, in the order the module documentation gives, with a line
 /// saying which.
 fn start(
@@ -196,6 +209,7 @@ fn start(
     args: &ServeArgs,
     ckpt_dir: &Path,
 ) -> Result<(Learner, String), LearnerError> {
+    let cfg = &learner_config(cfg, args);
     let from = |learner: &Learner, path: &Path| {
         format!(
             "resumes {} at version {} (optimizer digest {:08x})",
@@ -498,7 +512,8 @@ mod tests {
     /// own, a learner restarted with the same arguments resumes them instead.
     #[test]
     fn the_runs_own_checkpoints_beat_init_from() {
-        let cfg = small_config(128, 10);
+        let mut cfg = small_config(128, 10);
+        cfg.run.init_learning_rate = Some(1e-4);
         let source_dir = tempfile::tempdir().expect("tempdir");
         let mut source = learner(&cfg, 31);
         let r = OwnedRollout::acted_by(&source, 64, 4, 32);
@@ -513,12 +528,14 @@ mod tests {
         assert!(said.starts_with("warm-starts from"), "{said}");
         assert_eq!(warm.counters(), crate::Counters::default());
         assert_eq!(warm.policy_weights(), source.policy_weights());
+        assert_eq!(warm.learning_rate(), 1e-4, "run.init-learning-rate");
 
         warm.update(&r.view()).expect("update");
         warm.save_checkpoint(&ckpt_dir).expect("save");
         let (resumed, said) = start(&cfg, &args, &ckpt_dir).expect("restart");
         assert!(said.contains("not --init-from"), "{said}");
         assert_eq!(resumed.checkpoint(), warm.checkpoint());
+        assert_eq!(resumed.learning_rate(), warm.learning_rate());
     }
 
     #[test]

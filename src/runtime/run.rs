@@ -208,7 +208,7 @@ impl<'a> Run<'a> {
                 if let Host::Learner { .. } = self.host {
                     join.extend(["--sources".into(), cfg.net.sim_hosts.to_string()]);
                 }
-                if let Some(init) = &cfg.run.init_from {
+                if let Some(init) = cfg.run.warm_start(slot) {
                     join.extend(["--init-from".into(), init.display().to_string()]);
                 }
                 let args = learner_args(&join, &run_dir::learner_dir(&self.dir, slot), None);

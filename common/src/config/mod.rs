@@ -143,7 +143,7 @@ impl Config {
             ));
         }
         self.supervise.validate_restarts()?;
-        self.reproduce.validate()?;
+        self.reproduce.validate(&self.sim.terrain.kinds())?;
         self.supervise.validate_grace()?;
         self.net.validate()
     }

@@ -1,7 +1,7 @@
 //! `[reproduce]`: the stages of `lavatube reproduce` (DESIGN §6, SPEC S6–S8).
 
-use super::ConfigError;
-use super::range::{count_in, in_range};
+use super::range::{count_in, in_range, invalid};
+use super::{AreaKind, ConfigError};
 use serde::{Deserialize, Serialize};
 
 /// `lavatube reproduce`: the paper's pipeline, stage by stage (DESIGN §6, SPEC S6–S8). The
@@ -39,6 +39,11 @@ pub struct ReproduceConfig {
     /// (0, 1]. Default unset: the `[ppo]` one. Fine-tuning a converged model at the rate it
     /// was trained from scratch with can move it away from what it already does well.
     pub finetune_learning_rate: Option<f64>,
+    /// (e) Terrain kinds of the world whose specialist trains from new weights at
+    /// `ppo.learning-rate` instead of fine-tuning the general model: kinds the general model
+    /// drives in a way fine-tuning rarely unlearns (sand's gentle driving, EXPERIMENT E19).
+    /// Default none: every specialist fine-tuned, as in the paper.
+    pub fresh_specialists: Vec<AreaKind>,
     /// (e) Checkpoints of each specialist's fine-tuning kept as candidates, evenly spaced
     /// (`ppo.milestone-every`). 0 ..= 100. Default 0, the paper's: FTM and RTM are the
     /// fine-tuning's last checkpoints. With N > 0, each specialist is the one of the general
@@ -71,6 +76,7 @@ impl Default for ReproduceConfig {
             finetune_roughness_scale: None,
             eval_roughness_scale: None,
             finetune_learning_rate: None,
+            fresh_specialists: Vec::new(),
             specialist_candidates: 0,
             validation_episodes: 500,
             margin_pp: 1.0,
@@ -80,7 +86,22 @@ impl Default for ReproduceConfig {
 }
 
 impl ReproduceConfig {
-    pub(super) fn validate(&self) -> Result<(), ConfigError> {
+    /// Its own fields; `kinds` are the world's terrain kinds.
+    pub(super) fn validate(&self, kinds: &[AreaKind]) -> Result<(), ConfigError> {
+        if self.fresh_specialists.iter().any(|k| !kinds.contains(k)) {
+            return Err(invalid(
+                "reproduce.fresh-specialists",
+                &self.fresh_specialists,
+                format!(
+                    "names a kind without an area in sim.terrain.areas (it has {})",
+                    kinds
+                        .iter()
+                        .map(|k| k.name())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ),
+            ));
+        }
         count_in("reproduce.flat-envs", self.flat_envs, 1, 1024)?;
         count_in("reproduce.envs-per-area", self.envs_per_area, 1, 512)?;
         count_in("reproduce.eval-envs", self.eval_envs, 1, 1024)?;
@@ -153,5 +174,13 @@ mod tests {
             "{e}"
         );
         assert_eq!(parse(&c.to_toml()).expect("round trip"), c);
+    }
+
+    #[test]
+    fn fresh_specialists_are_kinds_of_the_world() {
+        let e = parse("[reproduce]\nfresh-specialists = [\"sand\"]\n").expect_err("no sand");
+        assert!(e.to_string().contains("reproduce.fresh-specialists"), "{e}");
+        let c = parse("[reproduce]\nfresh-specialists = [\"rough\"]\n").expect("valid");
+        assert_eq!(c.reproduce.fresh_specialists, [super::AreaKind::Rough]);
     }
 }

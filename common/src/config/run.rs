@@ -1,6 +1,6 @@
 //! `[run]`: how runs are named, seeded and paced, and the policy slots their learners fill.
 
-use super::range::invalid;
+use super::range::{in_range, invalid};
 use super::{AreaKind, ConfigError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
@@ -28,6 +28,13 @@ pub struct RunConfig {
     /// with fresh counters and optimizer (a warm start, e.g. the general model from the flat
     /// one). Relative paths are relative to the config file. Default none.
     pub init_from: Option<PathBuf>,
+    /// `ppo.learning-rate` of the learners started from `run.init-from` (it decays from there
+    /// like every run's). (0, 1]. Default unset: the `[ppo]` one.
+    pub init_learning_rate: Option<f64>,
+    /// Learners that start from new weights at `ppo.learning-rate` although `run.init-from`
+    /// is set: slots whose driving the warm start's policy would only unlearn slowly. Each in
+    /// `run.learners`. Default none.
+    pub fresh: Vec<PolicySlot>,
     /// Policy slots served frozen from a learner checkpoint, never trained (evaluation, e.g.
     /// switching between fixed FTM and RTM): `{ flat = "ftm.ckpt", rough = "rtm.ckpt" }`.
     /// Relative paths are relative to the config file. No slot may also be in `learners`.
@@ -182,6 +189,8 @@ impl Default for RunConfig {
             out_dir: PathBuf::from("runs"),
             learners: vec![PolicySlot::General],
             init_from: None,
+            init_learning_rate: None,
+            fresh: Vec::new(),
             frozen: std::collections::BTreeMap::default(),
             telemetry_csv: false,
             summary_every: 50_000,
@@ -191,6 +200,14 @@ impl Default for RunConfig {
 }
 
 impl RunConfig {
+    /// The checkpoint the learner of `slot` starts from: `run.init-from`, unless the slot is
+    /// one of `run.fresh`.
+    pub fn warm_start(&self, slot: PolicySlot) -> Option<&std::path::Path> {
+        self.init_from
+            .as_deref()
+            .filter(|_| !self.fresh.contains(&slot))
+    }
+
     /// Its own fields; `acting` decides whether the run needs a policy slot.
     pub(super) fn validate(&self, acting: Acting) -> Result<(), ConfigError> {
         if self.total_steps == 0 {
@@ -225,6 +242,18 @@ impl RunConfig {
             && !p.is_file()
         {
             return Err(invalid("run.init-from", p, "file not found"));
+        }
+        if let Some(lr) = self.init_learning_rate {
+            in_range("run.init-learning-rate", lr, 1e-12, 1.0)?;
+        }
+        if !self.fresh.is_empty()
+            && (self.init_from.is_none() || self.fresh.iter().any(|s| !self.learners.contains(s)))
+        {
+            return Err(invalid(
+                "run.fresh",
+                &self.fresh,
+                "names learners (slots in run.learners) that would otherwise start from run.init-from",
+            ));
         }
         if let Some(r) = &self.record
             && r.extension().is_none_or(|e| e != "rrd")
@@ -262,9 +291,32 @@ mod tests {
         assert!(err.to_string().contains("run.learners"), "{err}");
         let err = parse("[run]\ninit-from = \"/nonexistent.ckpt\"\n").expect_err("missing");
         assert!(err.to_string().contains("run.init-from"), "{err}");
+        let err = parse("[run]\nfresh = [\"general\"]\n").expect_err("nothing to start from");
+        assert!(err.to_string().contains("run.fresh"), "{err}");
+        let err = parse("[run]\ninit-learning-rate = 2.0\n").expect_err("too fast");
+        assert!(err.to_string().contains("run.init-learning-rate"), "{err}");
         let err = parse("[run]\nrecord = \"run.csv\"\n").expect_err("not .rrd");
         assert!(err.to_string().contains("run.record"), "{err}");
         assert!(parse("[run]\nrecord = \"run.rrd\"\n").is_ok());
+    }
+
+    #[test]
+    fn fresh_learners_ignore_the_warm_start() {
+        let ckpt = std::env::temp_dir().join(format!("fresh-{}.ckpt", std::process::id()));
+        std::fs::write(&ckpt, b"weights").expect("write");
+        let c = parse(&format!(
+            "[run]\nlearners = [\"flat\", \"sand\"]\ninit-from = {:?}\nfresh = [\"sand\"]\n\
+             [sim]\nacting = \"switch\"\n",
+            ckpt.display().to_string()
+        ));
+        let mut stray = c.as_ref().expect("valid").run.clone();
+        stray.fresh = vec![PolicySlot::Rough];
+        let err = stray.validate(Acting::Switch).expect_err("not a learner");
+        std::fs::remove_file(&ckpt).expect("remove");
+        let c = c.expect("valid");
+        assert_eq!(c.run.warm_start(PolicySlot::Flat), Some(ckpt.as_path()));
+        assert_eq!(c.run.warm_start(PolicySlot::Sand), None);
+        assert!(err.to_string().contains("run.fresh"), "{err}");
     }
 
     #[test]

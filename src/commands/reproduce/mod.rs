@@ -11,7 +11,8 @@
 //! e. `e-specialists`: one specialist per kind (FTM and RTM on the paper's terrains)
 //!    fine-tuned from (b) at once, each on the transitions the estimator (not the true area)
 //!    assigns to its terrain, acting by switching (SPEC S8); with K kinds the estimator is
-//!    stage d's classifier. `e-select` (with `reproduce.specialist-candidates`): each
+//!    stage d's classifier; those of `reproduce.fresh-specialists` start from new weights
+//!    instead (EXPERIMENT E19). `e-select` (with `reproduce.specialist-candidates`): each
 //!    specialist is the best on its own terrain's validation courses of the general model
 //!    and stage e's milestones;
 //! f. `f-eval`: success rate and reach time of the general model and every specialist in
@@ -71,9 +72,14 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
     let base = Config::load(&args.config)?;
     let out = std::path::absolute(&args.out)
         .with_context(|| format!("cannot resolve {}", args.out.display()))?;
-    if base.run.learners != [PolicySlot::General] || base.run.init_from.is_some() {
+    if base.run.learners != [PolicySlot::General]
+        || base.run.init_from.is_some()
+        || base.run.init_learning_rate.is_some()
+    {
         return Err(UserError(
-            "reproduce sets run.learners and run.init-from per stage: leave them unset".into(),
+            "reproduce sets run.learners, run.init-from and run.init-learning-rate per stage: \
+             leave them unset"
+                .into(),
         )
         .into());
     }

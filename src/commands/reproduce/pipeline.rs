@@ -3,7 +3,7 @@
 use super::evaluation::eval_areas;
 use super::legs::Evaluated;
 use super::report::report;
-use super::selection::{roles, specialists};
+use super::selection::{Role, roles, specialists};
 use crate::runtime;
 use anyhow::Context;
 use common::config::{Acting, AreaKind, PolicySlot};
@@ -146,8 +146,11 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let roles = roles(&p.kinds());
     let mut e = p.envs(r.envs_per_area);
     e.run.total_steps = r.finetune_steps;
-    e.run.learners = roles.iter().map(|r| r.slot).collect();
-    e.run.init_from = Some(p.checkpoint("b-general", PolicySlot::General)?);
+    specialists_start(
+        &mut e,
+        &roles,
+        p.checkpoint("b-general", PolicySlot::General)?,
+    );
     e.sim.acting = Acting::Switch;
     if !p.paper_terrains() {
         // SPEC S8 fits the estimator online; K kinds need the classifier named in stage d.
@@ -155,9 +158,6 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     }
     if let Some(scale) = r.finetune_roughness_scale {
         e.sim.terrain.roughness_scale = scale;
-    }
-    if let Some(lr) = r.finetune_learning_rate {
-        e.ppo.learning_rate = lr;
     }
     if r.specialist_candidates > 0 {
         e.ppo.milestone_every = p.milestone_every();
@@ -204,10 +204,52 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     Ok(cells)
 }
 
+/// Stage e's learners, one per specialist, and what each starts from (SPEC S8): the general
+/// model's weights at `reproduce.finetune-learning-rate`, or new weights at
+/// `ppo.learning-rate` for the kinds of `reproduce.fresh-specialists`.
+fn specialists_start(e: &mut Config, roles: &[Role], general: PathBuf) {
+    let r = &e.reproduce;
+    e.run.learners = roles.iter().map(|role| role.slot).collect();
+    e.run.fresh = roles
+        .iter()
+        .filter(|role| r.fresh_specialists.contains(&role.kind))
+        .map(|role| role.slot)
+        .collect();
+    e.run.init_learning_rate = r.finetune_learning_rate;
+    e.run.init_from = Some(general);
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use common::config::Area;
+
+    #[test]
+    fn fresh_specialists_start_from_new_weights_the_others_from_the_general_model() {
+        let kinds = [AreaKind::Flat, AreaKind::Rough, AreaKind::Sand];
+        let mut e = Config::default();
+        e.reproduce.finetune_learning_rate = Some(1e-4);
+        e.reproduce.fresh_specialists = vec![AreaKind::Sand];
+        let general = PathBuf::from("/out/b-general/checkpoints/last.ckpt");
+        specialists_start(&mut e, &roles(&kinds), general.clone());
+        assert_eq!(
+            e.run.learners,
+            [PolicySlot::Flat, PolicySlot::Rough, PolicySlot::Sand]
+        );
+        assert_eq!(e.run.warm_start(PolicySlot::Flat), Some(general.as_path()));
+        assert_eq!(e.run.warm_start(PolicySlot::Rough), Some(general.as_path()));
+        assert_eq!(e.run.warm_start(PolicySlot::Sand), None);
+        assert_eq!(
+            (e.run.init_learning_rate, e.ppo.learning_rate),
+            (Some(1e-4), 3e-4),
+            "fine-tuned slowly, the fresh one at PPO's own rate"
+        );
+        // The paper's pipeline: every specialist fine-tuned.
+        e.reproduce.fresh_specialists.clear();
+        specialists_start(&mut e, &roles(&kinds), general.clone());
+        assert!(e.run.fresh.is_empty());
+        assert_eq!(e.run.warm_start(PolicySlot::Sand), Some(general.as_path()));
+    }
 
     #[test]
     fn switching_estimates_with_stage_d_s_classifier_for_the_world_s_kinds() {
