@@ -88,18 +88,11 @@ impl Default for ReproduceConfig {
 impl ReproduceConfig {
     /// Its own fields; `kinds` are the world's terrain kinds.
     pub(super) fn validate(&self, kinds: &[AreaKind]) -> Result<(), ConfigError> {
-        if self.fresh_specialists.iter().any(|k| !kinds.contains(k)) {
+        if let Some(k) = self.fresh_specialists.iter().find(|k| !kinds.contains(k)) {
             return Err(invalid(
                 "reproduce.fresh-specialists",
                 &self.fresh_specialists,
-                format!(
-                    "names a kind without an area in sim.terrain.areas (it has {})",
-                    kinds
-                        .iter()
-                        .map(|k| k.name())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ),
+                format!("needs a `{}` area in sim.terrain.areas", k.name()),
             ));
         }
         count_in("reproduce.flat-envs", self.flat_envs, 1, 1024)?;
@@ -180,6 +173,7 @@ mod tests {
     fn fresh_specialists_are_kinds_of_the_world() {
         let e = parse("[reproduce]\nfresh-specialists = [\"sand\"]\n").expect_err("no sand");
         assert!(e.to_string().contains("reproduce.fresh-specialists"), "{e}");
+        assert!(e.to_string().contains("`sand` area"), "{e}");
         let c = parse("[reproduce]\nfresh-specialists = [\"rough\"]\n").expect("valid");
         assert_eq!(c.reproduce.fresh_specialists, [super::AreaKind::Rough]);
     }

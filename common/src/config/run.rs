@@ -302,20 +302,20 @@ mod tests {
 
     #[test]
     fn fresh_learners_ignore_the_warm_start() {
-        let ckpt = std::env::temp_dir().join(format!("fresh-{}.ckpt", std::process::id()));
+        let dir = tempfile::tempdir().expect("tempdir");
+        let ckpt = dir.path().join("general.ckpt");
         std::fs::write(&ckpt, b"weights").expect("write");
         let c = parse(&format!(
             "[run]\nlearners = [\"flat\", \"sand\"]\ninit-from = {:?}\nfresh = [\"sand\"]\n\
              [sim]\nacting = \"switch\"\n",
             ckpt.display().to_string()
-        ));
-        let mut stray = c.as_ref().expect("valid").run.clone();
-        stray.fresh = vec![PolicySlot::Rough];
-        let err = stray.validate(Acting::Switch).expect_err("not a learner");
-        std::fs::remove_file(&ckpt).expect("remove");
-        let c = c.expect("valid");
+        ))
+        .expect("valid");
         assert_eq!(c.run.warm_start(PolicySlot::Flat), Some(ckpt.as_path()));
         assert_eq!(c.run.warm_start(PolicySlot::Sand), None);
+        let mut stray = c.run.clone();
+        stray.fresh = vec![PolicySlot::Rough];
+        let err = stray.validate(Acting::Switch).expect_err("not a learner");
         assert!(err.to_string().contains("run.fresh"), "{err}");
     }
 
