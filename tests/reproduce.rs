@@ -75,6 +75,22 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         let text = std::fs::read_to_string(out.join(stage_cfg)).expect(stage_cfg);
         assert!(text.contains(ground), "{stage_cfg}: {text}");
     }
+    // No estimator where one general model acts; the switching stage has one.
+    for (stage, estimator) in [
+        ("a-flat", false),
+        ("b-general", false),
+        ("e-specialists", true),
+    ] {
+        let path = out.join(stage).join("summary.json");
+        let summary: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).expect("summary.json"))
+                .expect("summary json");
+        assert_eq!(
+            summary["pids"].get("estimator").is_some(),
+            estimator,
+            "{stage}: {summary}"
+        );
+    }
     // Switching classifies with stage d's mixture, never refitted on one area's windows.
     let switch = std::fs::read_to_string(out.join("f-eval/switching-rough-0/config.toml"))
         .expect("switching config");

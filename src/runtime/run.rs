@@ -220,7 +220,9 @@ impl<'a> Run<'a> {
             let args = learner_args(&join, &run_dir::learner_dir(&self.dir, slot), Some(ckpt));
             spec(Role::Learner(slot), args, sup.learner)
         }));
-        specs.push(spec(Role::Estimator, join(&["serve"]), sup.estimator));
+        if cfg.run.estimator {
+            specs.push(spec(Role::Estimator, join(&["serve"]), sup.estimator));
+        }
         if let Some(file) = &cfg.run.record {
             let mut args = join(&["serve"]);
             args.extend(["--out".into(), self.dir.join(file).display().to_string()]);

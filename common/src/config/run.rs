@@ -50,6 +50,9 @@ pub struct RunConfig {
     /// that recorder-proc writes the terrain, every robot's pose and trail and the estimator's
     /// signals to. Its death never stops the run. Default none.
     pub record: Option<PathBuf>,
+    /// Start estimator-proc, which classifies the terrain online (SPEC S8); false gives its
+    /// CPU to the sim where no env switches and every learner is `general`. Default true.
+    pub estimator: bool,
 }
 
 /// A policy slot of the sim's policy set (DESIGN §5): what a learner fills and an env acts with.
@@ -195,6 +198,7 @@ impl Default for RunConfig {
             telemetry_csv: false,
             summary_every: 50_000,
             record: None,
+            estimator: true,
         }
     }
 }
@@ -255,6 +259,14 @@ impl RunConfig {
                 "names learners (slots in run.learners) that would otherwise start from run.init-from",
             ));
         }
+        let specialists = self.learners.iter().any(|s| s.kind().is_some());
+        if !self.estimator && (acting == Acting::Switch || specialists) {
+            return Err(invalid(
+                "run.estimator",
+                false,
+                "must be true: switching and specialist learners need the terrain estimate",
+            ));
+        }
         if let Some(r) = &self.record
             && r.extension().is_none_or(|e| e != "rrd")
         {
@@ -298,6 +310,14 @@ mod tests {
         let err = parse("[run]\nrecord = \"run.csv\"\n").expect_err("not .rrd");
         assert!(err.to_string().contains("run.record"), "{err}");
         assert!(parse("[run]\nrecord = \"run.rrd\"\n").is_ok());
+        let err = parse("[run]\nestimator = false\n[sim]\nacting = \"switch\"\n")
+            .expect_err("switching reads the estimate");
+        assert!(err.to_string().contains("run.estimator"), "{err}");
+        let err =
+            parse("[run]\nestimator = false\nlearners = [\"rough\"]\n[sim]\nacting = \"rough\"\n")
+                .expect_err("a specialist learns from the estimate's class");
+        assert!(err.to_string().contains("run.estimator"), "{err}");
+        assert!(parse("[run]\nestimator = false\n").is_ok());
     }
 
     #[test]

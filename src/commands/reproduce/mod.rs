@@ -4,7 +4,7 @@
 //! it finished (an unfinished one is redone from scratch):
 //! a. `a-flat`: the initial flat model, from scratch (SPEC S6);
 //! b. `b-general`: the general model on every terrain kind's area (the paper's flat + rough),
-//!    warm-started from (a);
+//!    warm-started from (a); no estimator runs in (a) or (b), where one general model acts;
 //! c. `c-collect`: telemetry of the general model (mean actions), every area (SPEC S7);
 //! d. `d-analysis`: Table 3 and Figs. 5-8 (`estimator-proc analyze`); with more kinds than
 //!    the paper's two, the K-kind classifier named on this recording (`estimator-proc kinds`);

@@ -85,14 +85,17 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     let r = &base.reproduce;
     std::fs::write(out.join(run_dir::CONFIG_TOML), base.to_toml())?;
 
+    // One general model acts in stages a and b: no env switches, so no estimator runs.
     let mut a = base.clone();
     a.sim.only_in(AreaKind::Flat, r.flat_envs);
     a.run.total_steps = r.flat_steps;
+    a.run.estimator = false;
     p.train("a-flat", a)?;
 
     let mut b = p.envs(r.envs_per_area);
     b.run.total_steps = r.general_steps;
     b.run.init_from = Some(p.checkpoint("a-flat", PolicySlot::General)?);
+    b.run.estimator = false;
     p.train("b-general", b)?;
 
     let policies = p.stage_dir("policies");
