@@ -14,7 +14,7 @@
 
 use burn::tensor::{Device, Tensor, TensorData};
 use common::Rng;
-use common::policy::PolicyLayout;
+use common::policy::{PolicyLayout, fast_tanh};
 
 use crate::LearnerError;
 
@@ -295,37 +295,6 @@ pub fn tanh(x: Tensor<2>) -> Result<Tensor<2>, LearnerError> {
     Ok(x * constant(slope) + constant(offset))
 }
 
-/// tanh without libm calls or branches (so loops over it vectorise), within 2e-7 of
-/// `f32::tanh` and within 1e-6 relative near zero: `(e^{2x} − 1)/(e^{2x} + 1)` with
-/// `e^y − 1 = 2^n·(e^g − 1) + (2^n − 1)`, n = round(y / ln 2), |g| ≤ ln 2 / 2, and `e^g − 1`
-/// from its Taylor series to g⁶ (relative error < 2e-7); no cancellation for small x, where n = 0.
-#[inline]
-pub fn fast_tanh(x: f32) -> f32 {
-    // Round-to-nearest by the 1.5·2²³ trick (`f32::round` is a libm call on baseline x86-64);
-    // afterwards the low mantissa bits of `z` hold n.
-    const ROUNDER: f32 = 12_582_912.0;
-    // ln 2 split so that n·LN2_HI is exact (Cody–Waite).
-    const LN2_HI: f32 = 0.693_145_75;
-    const LN2_LO: f32 = 1.428_606_8e-6;
-    // tanh(±9) rounds to ±1 in f32; clamping keeps 2^n finite (and lets NaN through).
-    let y = 2.0 * x.clamp(-9.0, 9.0);
-    let z = y * std::f32::consts::LOG2_E + ROUNDER;
-    let n = z - ROUNDER;
-    let g = (y - n * LN2_HI) - n * LN2_LO;
-    let mut p = 1.0 / 720.0;
-    for c in [1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0] {
-        p = p * g + c;
-    }
-    let scale = f32::from_bits(
-        z.to_bits()
-            .wrapping_sub(ROUNDER.to_bits())
-            .wrapping_add(127)
-            << 23,
-    );
-    let em1 = p * g * scale + (scale - 1.0);
-    em1 / (em1 + 2.0)
-}
-
 /// A tensor's values on the host, naming `what` if burn cannot read them.
 pub fn read<const D: usize>(t: Tensor<D>, what: &'static str) -> Result<Vec<f32>, LearnerError> {
     t.try_into_vec_as::<f32>()
@@ -441,24 +410,6 @@ mod tests {
                 .all(|b| b.abs() <= bound)
         );
         assert!(plain[shape.blocks[3].range()].iter().any(|&b| b != 0.0));
-    }
-
-    #[test]
-    fn fast_tanh_matches_std_tanh() {
-        let mut worst = 0.0f32;
-        for i in -130_000..=130_000 {
-            let x = i as f32 * 1e-4;
-            let (got, want) = (fast_tanh(x), x.tanh());
-            worst = worst.max((got - want).abs());
-            if x.abs() < 0.2 && x != 0.0 {
-                assert!(((got - want) / want).abs() < 1e-6, "relative error at {x}");
-            }
-        }
-        assert!(worst < 2e-7, "max error {worst}");
-        for x in [1e-30f32, 50.0, -1e30, f32::INFINITY, f32::NEG_INFINITY] {
-            assert!((fast_tanh(x) - x.tanh()).abs() < 1e-7, "{x}");
-        }
-        assert!(fast_tanh(f32::NAN).is_nan());
     }
 
     /// The tape sees tanh's value and exactly its derivative 1 − tanh²; the last column is the

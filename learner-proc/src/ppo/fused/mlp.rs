@@ -2,8 +2,9 @@
 //! dense layers `x·W + b` (weights `[in][out]` row-major, as the flat parameter vector holds
 //! them), tanh between them ([`fast_tanh`], the burn engine's), a linear output.
 
-use crate::net::{ParamBlock, fast_tanh};
+use crate::net::ParamBlock;
 use crate::simd::vectorized;
+use common::policy::fast_tanh;
 
 use super::matmul::{Mat, matmul};
 
