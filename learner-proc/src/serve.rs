@@ -36,9 +36,10 @@ pub struct ServeArgs {
     /// Warm start: take the actor, critic and observation statistics of this checkpoint file
     /// but start counters, optimizer, learning-rate schedule and RNG afresh (e.g. the general
     /// model from the flat model), at `run.init-learning-rate` where set. Its network must
-    /// match `ppo.hidden`. Ignored when the run directory already has checkpoints: a
-    /// restarted learner resumes those.
-    #[arg(long, conflicts_with = "checkpoint")]
+    /// match `ppo.hidden`. Ignored for the weights when the run directory already has
+    /// checkpoints or `--checkpoint` names one: the learner resumes that, still at
+    /// `run.init-learning-rate` (a swapped or restarted warm-started learner keeps its rate).
+    #[arg(long)]
     pub init_from: Option<PathBuf>,
     /// Only check that this learner can start (config, checkpoint, network shape), print
     /// what it would start from, and exit without joining the run. `lavatube swap-learner`
@@ -501,13 +502,6 @@ mod tests {
         assert!(figure.png.exists(), "the end");
     }
 
-    #[test]
-    fn checkpoint_and_init_from_exclude_each_other() {
-        let e = serve_args(&["--checkpoint", "a.ckpt", "--init-from", "b.ckpt"])
-            .expect_err("both given");
-        assert_eq!(e.kind(), clap::error::ErrorKind::ArgumentConflict);
-    }
-
     /// `--init-from` warm-starts a run directory without checkpoints; once the run has its
     /// own, a learner restarted with the same arguments resumes them instead.
     #[test]
@@ -536,6 +530,13 @@ mod tests {
         assert!(said.contains("not --init-from"), "{said}");
         assert_eq!(resumed.checkpoint(), warm.checkpoint());
         assert_eq!(resumed.learning_rate(), warm.learning_rate());
+
+        // A swap to a named checkpoint in a warm-started run: the file wins, the rate stays.
+        let named = serve_args(&["--init-from", path, "--checkpoint", path]).expect("args");
+        let (swapped, said) = start(&cfg, &named, &ckpt_dir).expect("named checkpoint");
+        assert!(said.starts_with(&format!("resumes {path}")), "{said}");
+        assert_eq!(swapped.checkpoint(), source.checkpoint());
+        assert_eq!(swapped.learning_rate(), 1e-4, "run.init-learning-rate");
     }
 
     #[test]
