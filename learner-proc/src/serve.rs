@@ -462,6 +462,7 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::checkpoint::Checkpoint;
     use crate::cli::{Cli, Command};
     use crate::ppo::tests::{OwnedRollout, learner, small_config};
     use clap::Parser;
@@ -535,8 +536,15 @@ mod tests {
         let named = serve_args(&["--init-from", path, "--checkpoint", path]).expect("args");
         let (swapped, said) = start(&cfg, &named, &ckpt_dir).expect("named checkpoint");
         assert!(said.starts_with(&format!("resumes {path}")), "{said}");
-        assert_eq!(swapped.checkpoint(), source.checkpoint());
-        assert_eq!(swapped.learning_rate(), 1e-4, "run.init-learning-rate");
+        // run.init-learning-rate, annealed over the file's 256 of the run's 2560 steps.
+        assert_eq!(source.counters().global_step, 256);
+        let rate = 1e-4 * (1.0 - 256.0 / 2560.0);
+        assert_eq!(swapped.learning_rate(), rate);
+        let file_at_this_runs_rate = Checkpoint {
+            learning_rate: rate,
+            ..source.checkpoint()
+        };
+        assert_eq!(swapped.checkpoint(), file_at_this_runs_rate);
     }
 
     #[test]
