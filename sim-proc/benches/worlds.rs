@@ -9,10 +9,9 @@
 
 use common::config::{AreaKind, SimConfig};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
-use glam::Quat;
-use rapier3d::prelude::{PhysicsWorld, Pose, Vector};
+use rapier3d::prelude::PhysicsWorld;
 use sim_proc::SharedTerrain;
-use sim_proc::env::build_world;
+use sim_proc::env::{build_world, drop_pose};
 use sim_proc::robot::{self, Robot};
 use sim_proc::terrain::Terrain;
 use std::time::{Duration, Instant};
@@ -58,12 +57,7 @@ fn shared(
     let (mut world, first) = build_world(cfg, terrain, spot(cfg, area, 0, k), 0.0, area);
     let mut robots = vec![first];
     for i in 1..k {
-        let [x, z] = spot(cfg, area, i, k);
-        let y = terrain.terrain.height_at(x, z) + cfg.robot.wheel_radius + 0.01;
-        let pose = Pose::from_parts(
-            Vector::new(x as f32, y as f32, z as f32),
-            Quat::from_rotation_y(0.7 * i as f32),
-        );
+        let pose = drop_pose(cfg, terrain, spot(cfg, area, i, k), 0.7 * i as f64);
         robots.push(robot::build(&mut world, &cfg.robot, pose));
     }
     (world, robots)

@@ -483,7 +483,13 @@ pub fn build_world(
             )),
         None,
     );
-    // Drop the robot just above the highest ground under its footprint.
+    let robot = robot::build(&mut world, &cfg.robot, drop_pose(cfg, terrain, at, yaw));
+    (world, robot)
+}
+
+/// Where a robot placed at ground point `at` facing `yaw` starts: its axle just above the
+/// highest ground under its footprint, so no part starts inside the floor.
+pub fn drop_pose(cfg: &SimConfig, terrain: &SharedTerrain, at: [f64; 2], yaw: f64) -> Pose {
     let r = &cfg.robot;
     let reach = 0.5 * r.track_width + r.wheel_radius + 2.0 * r.chassis_half_extents[2];
     let mut ground = f64::MIN;
@@ -492,16 +498,14 @@ pub fn build_world(
             ground = ground.max(terrain.terrain.height_at(at[0] + dx, at[1] + dz));
         }
     }
-    let pose = Pose::from_parts(
+    Pose::from_parts(
         Vector::new(
             at[0] as f32,
             (ground + r.wheel_radius + SPAWN_CLEARANCE) as f32,
             at[1] as f32,
         ),
         Quat::from_rotation_y(yaw as f32),
-    );
-    let robot = robot::build(&mut world, r, pose);
-    (world, robot)
+    )
 }
 
 #[cfg(test)]
