@@ -2,7 +2,7 @@
 //! down a slope whose friction is below what its incline needs, gravel shakes the chassis at
 //! higher frequencies than rough ground, and a wheel that spins fast digs into sand.
 
-use common::config::{Area, AreaKind, SimConfig, TerrainConfig, WheelModel};
+use common::config::{Area, AreaKind, SimConfig, TerrainCollider, TerrainConfig, WheelModel};
 use sim_proc::env::{SharedTerrain, build_world};
 use sim_proc::terrain::Terrain;
 
@@ -17,9 +17,14 @@ fn areas_only(areas: Vec<Area>, mixed_area: common::config::Rect) -> TerrainConf
     }
 }
 
-/// A world with one slope area, x ∈ [0, 2], z ∈ [0, 2], of `incline_deg` and `friction`, and
-/// robots with `wheels`.
-fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, SharedTerrain) {
+/// A world with one slope area, x ∈ [0, 2], z ∈ [0, 2], of `incline_deg` and `friction`, its
+/// floor colliding as `floor`, and robots with `wheels`.
+fn slope(
+    incline_deg: f64,
+    friction: f64,
+    floor: TerrainCollider,
+    wheels: WheelModel,
+) -> (SimConfig, SharedTerrain) {
     let slope_area = Area {
         kind: AreaKind::Slope,
         x: [0.0, 2.0],
@@ -35,6 +40,7 @@ fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, Sha
     };
     terrain.slope.incline_deg = incline_deg;
     terrain.slope.friction = friction;
+    terrain.collider = floor;
     let mut cfg = SimConfig {
         flat_envs: 0,
         slope_envs: 1,
@@ -47,10 +53,17 @@ fn slope(incline_deg: f64, friction: f64, wheels: WheelModel) -> (SimConfig, Sha
 }
 
 /// How far (metres, along +X: uphill) a robot with `wheels`, dropped on the slope's western
-/// face facing `yaw` and settled with its wheels held still, moves in `seconds` with both
-/// wheels at `command`.
-fn slope_travel(friction: f64, wheels: WheelModel, yaw: f64, command: f32, seconds: f64) -> f64 {
-    let (cfg, terrain) = slope(12.0, friction, wheels);
+/// face (colliding as `floor`) facing `yaw` and settled with its wheels held still, moves in
+/// `seconds` with both wheels at `command`.
+fn slope_travel(
+    friction: f64,
+    floor: TerrainCollider,
+    wheels: WheelModel,
+    yaw: f64,
+    command: f32,
+    seconds: f64,
+) -> f64 {
+    let (cfg, terrain) = slope(12.0, friction, floor, wheels);
     let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], yaw, AreaKind::Slope);
     let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
     // Let the drop settle before measuring.
@@ -70,8 +83,9 @@ fn a_robot_parked_across_a_slope_slides_at_low_friction_and_holds_at_one() {
     // Across the slope the wheels cannot roll downhill: only friction holds the robot. At 12°
     // it needs μ ≥ tan 12° ≈ 0.21 on every contact, and the skid has 0.05.
     for wheels in [WheelModel::Joint, WheelModel::Contact] {
-        let slid = -slope_travel(0.3, wheels, 0.0, 0.0, 2.0);
-        let held = -slope_travel(1.0, wheels, 0.0, 0.0, 2.0);
+        let floor = TerrainCollider::Heightfield;
+        let slid = -slope_travel(0.3, floor, wheels, 0.0, 0.0, 2.0);
+        let held = -slope_travel(1.0, floor, wheels, 0.0, 0.0, 2.0);
         assert!(
             slid > 0.2,
             "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s"
@@ -87,17 +101,22 @@ fn a_robot_parked_across_a_slope_slides_at_low_friction_and_holds_at_one() {
 fn a_robot_facing_up_a_slope_climbs_at_omega_r() {
     // Facing uphill (+X) on the 12° face at μ = 0.5: the climb needs about
     // m·g·sin 12°·r / 2 ≈ 0.013 N·m from each wheel, well inside the motors' 0.1 N·m, and
-    // grip μ ≥ tan 12° ≈ 0.21, so the wheels should roll at the command from rest.
+    // grip μ ≥ tan 12° ≈ 0.21, so the wheels should roll at the command from rest, on either
+    // floor collider (a two-sided mesh held a jointed robot to 75 % of it).
     let r = SimConfig::default().robot.wheel_radius;
     let (seconds, incline) = (3.0, 12f64.to_radians());
-    for wheels in [WheelModel::Joint, WheelModel::Contact] {
-        for command in [1.0f32, 3.0] {
-            let climbed = slope_travel(0.5, wheels, std::f64::consts::FRAC_PI_2, command, seconds);
-            let want = f64::from(command) * r * seconds * incline.cos();
-            assert!(
-                (climbed - want).abs() < 0.1 * want,
-                "{wheels:?} at {command} rad/s: climbed {climbed} m along X, ω·r·t·cos 12° = {want} m"
-            );
+    let uphill = std::f64::consts::FRAC_PI_2;
+    for floor in [TerrainCollider::Heightfield, TerrainCollider::Trimesh] {
+        for wheels in [WheelModel::Joint, WheelModel::Contact] {
+            for command in [1.0f32, 3.0] {
+                let climbed = slope_travel(0.5, floor, wheels, uphill, command, seconds);
+                let want = f64::from(command) * r * seconds * incline.cos();
+                assert!(
+                    (climbed - want).abs() < 0.1 * want,
+                    "{floor:?}, {wheels:?} at {command} rad/s: climbed {climbed} m along X, \
+                     ω·r·t·cos 12° = {want} m"
+                );
+            }
         }
     }
 }
