@@ -9,7 +9,7 @@ use zenoh::pubsub::Subscriber;
 use zenoh::sample::Sample;
 use zenoh::{Config, Wait};
 
-/// An open Zenoh connection to the run's other hosts (Zenoh's own name for it is below).
+/// An open Zenoh connection to the run's other hosts, as `zenoh::open` returns it.
 pub type Net = zenoh::Session;
 
 /// Rollout chunks of sim host `source`.
