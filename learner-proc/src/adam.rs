@@ -68,7 +68,7 @@ impl Adam {
         debug_assert!(params.len() == self.m.len() && grads.len() == self.m.len());
         self.step += 1;
         self.at(self.step, lr)
-            .apply(params, grads, &mut self.m, &mut self.v);
+            .apply(params, grads, 1.0, &mut self.m, &mut self.v);
     }
 
     /// The constants of step `t` (1-based) at learning rate `lr`, to apply to a part of the
@@ -99,11 +99,21 @@ pub struct AdamStep {
 }
 
 impl AdamStep {
-    /// Updates `params` and their moments `m`, `v` with `grads` (all the same length).
-    pub fn apply(&self, params: &mut [f32], grads: &[f32], m: &mut [f32], v: &mut [f32]) {
+    /// Updates `params` and their moments `m`, `v` with `grads` (all the same length), each
+    /// gradient multiplied first by `scale` (a clipping factor, [`clip_coef`]; 1 leaves the
+    /// gradient's bits as they are). One pass, where clipping then stepping would be two.
+    pub fn apply(
+        &self,
+        params: &mut [f32],
+        grads: &[f32],
+        scale: f32,
+        m: &mut [f32],
+        v: &mut [f32],
+    ) {
         let (b1, b2, eps) = (self.beta1, self.beta2, self.eps);
         crate::simd::vectorized(|| {
             for (((p, &g), m), v) in params.iter_mut().zip(grads).zip(m).zip(v) {
+                let g = g * scale;
                 *m = b1 * *m + (1.0 - b1) * g;
                 *v = b2 * *v + (1.0 - b2) * g * g;
                 *p -= self.step_size * *m / (v.sqrt() / self.bias2_sqrt + eps);
@@ -140,6 +150,22 @@ mod tests {
         a.v[1] = 0.0;
         a.step = 1;
         assert_ne!(a.digest(), base);
+    }
+
+    /// Scaling inside the step gives the bits of clipping first, then stepping.
+    #[test]
+    fn a_scaled_step_is_clipping_then_stepping() {
+        let grads = [3.0f32, -4.0, 0.25];
+        let mut clipped = grads;
+        let norm = clip_global_norm(&mut clipped, 0.5);
+        let coef = clip_coef(norm, 0.5).expect("over the limit");
+        let (mut a, mut b) = (Adam::new(3, 1e-5), Adam::new(3, 1e-5));
+        let (mut pa, mut pb) = ([1.0f32, 2.0, 3.0], [1.0f32, 2.0, 3.0]);
+        let step = a.at(1, 0.01);
+        step.apply(&mut pa, &clipped, 1.0, &mut a.m, &mut a.v);
+        step.apply(&mut pb, &grads, coef, &mut b.m, &mut b.v);
+        assert_eq!((pa, &a.m, &a.v), (pb, &b.m, &b.v));
+        assert_ne!(pa, [1.0, 2.0, 3.0]);
     }
 
     /// Hand-computed: step 1 gives m̂ = g, v̂ = g², so each parameter moves by

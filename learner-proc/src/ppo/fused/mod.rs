@@ -312,12 +312,9 @@ impl<'a> Shared<'a> {
         *t += 1;
         let step = self.adam.at(*t, self.lr);
         for o in owned {
-            if let Some(c) = coef {
-                vectorized(|| o.grads.iter_mut().for_each(|x| *x *= c));
-            }
             let part = &self.plan.parts[o.part];
             let mine = &mut params[part.range.clone()];
-            step.apply(mine, &o.grads, &mut o.m, &mut o.v);
+            step.apply(mine, &o.grads, coef.unwrap_or(1.0), &mut o.m, &mut o.v);
             if self.plan.shared(part.net) {
                 self.parts[o.part]
                     .write()
