@@ -469,6 +469,9 @@ pub fn build_world(
     world.integration_parameters.dt = cfg.physics_dt as f32;
     world.integration_parameters.length_unit = cfg.robot.length_unit as f32;
     world.integration_parameters.num_solver_iterations = cfg.robot.solver_iterations;
+    world
+        .integration_parameters
+        .num_internal_stabilization_iterations = cfg.robot.stabilization_iterations;
     let c = terrain.centre;
     let (friction, rule) = floor_contact(cfg, ground);
     world.insert_collider(
@@ -660,14 +663,20 @@ mod tests {
             if imu_stepping {
                 step_as_the_imu_needs(&mut cfg);
             }
-            let iterations = cfg.robot.solver_iterations;
             let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), collider);
             let mut fleet = crate::Fleet::new(&cfg, &terrain, 3);
-            let env = &fleet.envs[0];
+            let params = &fleet.envs[0].world.integration_parameters;
             assert_eq!(
-                env.world.integration_parameters.num_solver_iterations,
-                iterations
+                (
+                    params.num_solver_iterations,
+                    params.num_internal_stabilization_iterations
+                ),
+                (
+                    cfg.robot.solver_iterations,
+                    cfg.robot.stabilization_iterations
+                )
             );
+            let env = &fleet.envs[0];
             let ground = env
                 .world
                 .colliders

@@ -60,8 +60,11 @@ pub struct RobotConfig {
     pub action_limit: f64,
     /// rapier's length unit, metres (a robot this small halves its step cost at ≈ 0.2). [0.01, 10]. Default 0.2.
     pub length_unit: f64,
-    /// rapier's solver substeps per physics step (each a velocity and a stabilisation pass). 1 ..= 16. Default 6 (5.6 ms each at the default step).
+    /// rapier's solver substeps per physics step (each a velocity pass and `stabilization-iterations` passes). 1 ..= 16. Default 6 (5.6 ms each at the default step).
     pub solver_iterations: usize,
+    /// rapier's stabilisation (relax) passes per solver substep: with 2, 4 substeps drive and
+    /// climb as 6 with 1 do, for 6 % less physics (docs/RESULTS.md, R47). 1 ..= 8. Default 1.
+    pub stabilization_iterations: usize,
 }
 
 impl Default for RobotConfig {
@@ -83,6 +86,7 @@ impl Default for RobotConfig {
             action_limit: 3.0,
             length_unit: 0.2,
             solver_iterations: 6,
+            stabilization_iterations: 1,
         }
     }
 }
@@ -110,6 +114,12 @@ impl RobotConfig {
         in_range("sim.robot.action-limit", self.action_limit, 1e-6, 100.0)?;
         in_range("sim.robot.length-unit", self.length_unit, 0.01, 10.0)?;
         count_in("sim.robot.solver-iterations", self.solver_iterations, 1, 16)?;
+        count_in(
+            "sim.robot.stabilization-iterations",
+            self.stabilization_iterations,
+            1,
+            8,
+        )?;
         if self.caster_radius >= self.wheel_radius {
             return Err(invalid(
                 "sim.robot.caster-radius",
