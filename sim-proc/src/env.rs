@@ -665,7 +665,8 @@ mod tests {
             }
             let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), collider);
             let mut fleet = crate::Fleet::new(&cfg, &terrain, 3);
-            let params = &fleet.envs[0].world.integration_parameters;
+            let env = &fleet.envs[0];
+            let params = &env.world.integration_parameters;
             assert_eq!(
                 (
                     params.num_solver_iterations,
@@ -676,7 +677,6 @@ mod tests {
                     cfg.robot.stabilization_iterations
                 )
             );
-            let env = &fleet.envs[0];
             let ground = env
                 .world
                 .colliders

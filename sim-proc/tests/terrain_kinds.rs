@@ -2,7 +2,9 @@
 //! down a slope whose friction is below what its incline needs, gravel shakes the chassis at
 //! higher frequencies than rough ground, and a wheel that spins fast digs into sand.
 
-use common::config::{Area, AreaKind, SimConfig, TerrainCollider, TerrainConfig, WheelModel};
+use common::config::{
+    Area, AreaKind, RobotConfig, SimConfig, TerrainCollider, TerrainConfig, WheelModel,
+};
 use sim_proc::env::{SharedTerrain, build_world};
 use sim_proc::terrain::Terrain;
 
@@ -18,12 +20,12 @@ fn areas_only(areas: Vec<Area>, mixed_area: common::config::Rect) -> TerrainConf
 }
 
 /// A world with one slope area, x ∈ [0, 2], z ∈ [0, 2], of `incline_deg` and `friction`, its
-/// floor colliding as `floor`, and robots with `wheels`.
+/// floor colliding as `floor`, and robots built as `robot`.
 fn slope(
     incline_deg: f64,
     friction: f64,
     floor: TerrainCollider,
-    wheels: WheelModel,
+    robot: RobotConfig,
 ) -> (SimConfig, SharedTerrain) {
     let slope_area = Area {
         kind: AreaKind::Slope,
@@ -41,46 +43,37 @@ fn slope(
     terrain.slope.incline_deg = incline_deg;
     terrain.slope.friction = friction;
     terrain.collider = floor;
-    let mut cfg = SimConfig {
+    let cfg = SimConfig {
         flat_envs: 0,
         slope_envs: 1,
         terrain,
+        robot,
         ..SimConfig::default()
     };
-    cfg.robot.wheel_model = wheels;
     let shared = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
     (cfg, shared)
 }
 
-/// How far (metres, along +X: uphill) a robot with `wheels`, dropped on the slope's western
+/// The default robot with `wheels`.
+fn wheeled(wheels: WheelModel) -> RobotConfig {
+    RobotConfig {
+        wheel_model: wheels,
+        ..RobotConfig::default()
+    }
+}
+
+/// How far (metres, along +X: uphill) a robot built as `robot`, dropped on the slope's western
 /// face (colliding as `floor`) facing `yaw` and settled with its wheels held still, moves in
 /// `seconds` with both wheels at `command`.
 fn slope_travel(
     friction: f64,
     floor: TerrainCollider,
-    wheels: WheelModel,
+    robot: RobotConfig,
     yaw: f64,
     command: f32,
     seconds: f64,
 ) -> f64 {
-    slope_travel_stepped(friction, floor, wheels, yaw, command, seconds, None)
-}
-
-/// [`slope_travel`] with the solver's substeps and stabilisation passes set, where given.
-fn slope_travel_stepped(
-    friction: f64,
-    floor: TerrainCollider,
-    wheels: WheelModel,
-    yaw: f64,
-    command: f32,
-    seconds: f64,
-    solver: Option<[usize; 2]>,
-) -> f64 {
-    let (mut cfg, terrain) = slope(12.0, friction, floor, wheels);
-    if let Some([substeps, passes]) = solver {
-        cfg.robot.solver_iterations = substeps;
-        cfg.robot.stabilization_iterations = passes;
-    }
+    let (cfg, terrain) = slope(12.0, friction, floor, robot);
     let (mut world, robot) = build_world(&cfg, &terrain, [0.5, 1.0], yaw, AreaKind::Slope);
     let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
     // Let the drop settle before measuring.
@@ -101,8 +94,8 @@ fn a_robot_parked_across_a_slope_slides_at_low_friction_and_holds_at_one() {
     // it needs μ ≥ tan 12° ≈ 0.21 on every contact, and the skid has 0.05.
     for wheels in [WheelModel::Joint, WheelModel::Contact] {
         let floor = TerrainCollider::Heightfield;
-        let slid = -slope_travel(0.3, floor, wheels, 0.0, 0.0, 2.0);
-        let held = -slope_travel(1.0, floor, wheels, 0.0, 0.0, 2.0);
+        let slid = -slope_travel(0.3, floor, wheeled(wheels), 0.0, 0.0, 2.0);
+        let held = -slope_travel(1.0, floor, wheeled(wheels), 0.0, 0.0, 2.0);
         assert!(
             slid > 0.2,
             "{wheels:?}: at μ = 0.3 it moved {slid} m downhill in 2 s"
@@ -126,7 +119,7 @@ fn a_robot_facing_up_a_slope_climbs_at_omega_r() {
     for floor in [TerrainCollider::Heightfield, TerrainCollider::Trimesh] {
         for wheels in [WheelModel::Joint, WheelModel::Contact] {
             for command in [1.0f32, 3.0] {
-                let climbed = slope_travel(0.5, floor, wheels, uphill, command, seconds);
+                let climbed = slope_travel(0.5, floor, wheeled(wheels), uphill, command, seconds);
                 let want = f64::from(command) * r * seconds * incline.cos();
                 assert!(
                     (climbed - want).abs() < 0.1 * want,
@@ -144,21 +137,19 @@ fn a_robot_facing_up_a_slope_climbs_at_omega_r() {
 #[test]
 fn four_substeps_climb_with_two_stabilisation_passes_and_slide_back_with_one() {
     let want = SimConfig::default().robot.wheel_radius * 3.0 * 12f64.to_radians().cos();
-    let climb = |solver| {
-        let (floor, wheels) = (TerrainCollider::Heightfield, WheelModel::Joint);
-        slope_travel_stepped(
-            0.5,
-            floor,
-            wheels,
-            std::f64::consts::FRAC_PI_2,
-            1.0,
-            3.0,
-            solver,
-        )
+    let climb = |passes| {
+        let robot = RobotConfig {
+            wheel_model: WheelModel::Joint,
+            solver_iterations: 4,
+            stabilization_iterations: passes,
+            ..RobotConfig::default()
+        };
+        let (floor, uphill) = (TerrainCollider::Heightfield, std::f64::consts::FRAC_PI_2);
+        slope_travel(0.5, floor, robot, uphill, 1.0, 3.0)
     };
-    let two = climb(Some([4, 2]));
+    let two = climb(2);
     assert!((two - want).abs() < 0.1 * want, "4 × 2: {two} m of {want}");
-    let one = climb(Some([4, 1]));
+    let one = climb(1);
     assert!(one < 0.0, "4 × 1: {one} m, expected a slide back");
 }
 
