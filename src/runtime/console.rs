@@ -5,6 +5,7 @@
 //! The children's routine lines stay in their log files; warnings, errors and anything that
 //! is not a log line (a panic) are shown. `--verbose` shows every line.
 
+use super::numbers::thousands;
 use super::{Progress, say};
 use common::config::PolicySlot;
 use common::run_dir;
@@ -41,22 +42,6 @@ fn is_routine(line: &str) -> bool {
         && words
             .next()
             .is_some_and(|level| matches!(level, "INFO" | "DEBUG" | "TRACE"))
-}
-
-/// `12345.6` → `12,346`.
-pub fn thousands(x: f64) -> String {
-    if !x.is_finite() {
-        return format!("{x}");
-    }
-    let digits = format!("{:.0}", x.abs());
-    let mut out = String::new();
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i) % 3 == 0 {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    if x < -0.5 { format!("-{out}") } else { out }
 }
 
 /// `125.4` s → `2m 05s`; an hour or more → `1h 02m`.

@@ -10,6 +10,7 @@ mod console;
 mod host;
 pub mod ladder;
 pub mod map;
+mod numbers;
 mod role;
 mod run;
 mod summary;
@@ -19,8 +20,9 @@ mod sweep;
 
 pub use bins::{Binaries, locate};
 pub use child::{Child, Output, Usage};
-pub use console::{Lines, thousands};
+pub use console::Lines;
 pub use host::Host;
+pub use numbers::thousands;
 pub use role::Role;
 pub use run::{Finished, LAUNCHER_NODE, ResumedConfig, Run};
 pub use summary::{MeanStd, Progress, Summary};

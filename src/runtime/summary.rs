@@ -1,6 +1,7 @@
 //! What a run reports: the progress it shows while it runs, read from its own telemetry and
 //! terrain services, and the typed [`Summary`] behind `summary.json` when it ends.
 
+use super::numbers::thousands;
 use common::config::PolicySlot;
 use common::episode::EpisodeStats;
 use common::wire::{TerrainHeader, TickHeader};
@@ -137,10 +138,10 @@ impl Summary {
         format!(
             "run {}: {} env steps in {:.1} s ({} steps/s), {} episodes, success {:.1}%, policy v{}, terrain accuracy {} → {}",
             self.run_id,
-            super::thousands(self.env_steps as f64),
+            thousands(self.env_steps as f64),
             self.wall_seconds,
-            super::thousands(self.env_steps_per_second),
-            super::thousands(self.episodes as f64),
+            thousands(self.env_steps_per_second),
+            thousands(self.episodes as f64),
             100.0 * self.success_rate,
             self.policy_version,
             self.terrain_accuracy
