@@ -259,70 +259,15 @@ impl<'a> Run<'a> {
     /// Runs to the end: until the sim has finished and the learners have learned from its
     /// last chunk, a process fails for good, or Ctrl-C. Fails when a process failed for good.
     pub fn execute(self) -> anyhow::Result<Finished> {
-        say(
-            &self.bar,
-            format!(
-                "run {}{}: {}, {:?} mode → {}",
-                self.id,
-                if self.resume { " (resumed)" } else { "" },
-                self.cfg.sim.describe_envs(),
-                self.cfg.run.mode,
-                self.dir.display()
-            ),
-        );
+        self.announce();
         let bus = Bus::connect(&self.id, LAUNCHER_NODE)?;
         let control = bus.control_notifier()?;
-        let learners = self.cfg.run.learners.iter();
-        let ports = Ports {
-            telemetry: bus.receiver(&ipc::TELEMETRY, None)?,
-            terrain: bus.receiver(&ipc::TERRAIN, None)?,
-            policies: learners
-                .map(|&slot| Ok((slot, bus.receiver(&ipc::POLICY, Some(slot.name()))?)))
-                .collect::<anyhow::Result<_>>()?,
-            swap: bus.swap_server()?,
-        };
+        let ports = Ports::open(&bus, &self.cfg.run.learners)?;
         let grace = Duration::from_millis(self.cfg.supervise.grace_ms);
-        let mut members: Vec<Supervised> = Vec::new();
-        for spec in self.specs() {
-            match Supervised::start(spec, &self.logs, &self.bar, self.lines) {
-                Ok(s) => members.push(s),
-                Err(e) => {
-                    stop_all(&mut members, &|| {}, grace);
-                    return Err(e);
-                }
-            }
-        }
-        let pids: Vec<String> = members
-            .iter()
-            .map(|s| format!("{} {}", s.role().name(), s.child.pid()))
-            .collect();
-        if self.lines == Lines::All {
-            say(&self.bar, format!("pids: {}", pids.join(", ")));
-        }
+        let members = self.start_members(grace)?;
 
         let started = Instant::now();
-        let mut loop_ = Supervision {
-            run: &self,
-            bus: &bus,
-            members,
-            progress: Progress {
-                both_areas: (self.cfg.sim.flat_envs > 0 && self.cfg.sim.rough_envs > 0)
-                    || self.cfg.sim.mixed_envs > 0,
-                ..Progress::default()
-            },
-            failed: None,
-            swaps: 0,
-            sim_finished: None,
-            grace,
-            rate: Rate::default(),
-            rate_now: None,
-            board: Board::new(&self.dir),
-            summaries: Summaries::new(
-                &self.dir,
-                &self.cfg.run.learners,
-                self.cfg.run.summary_every,
-            ),
-        };
+        let mut loop_ = Supervision::new(&self, &bus, members, grace);
         let interrupted = loop_.until_done(&ports)?;
         loop_.show_progress(&ports)?;
         let Supervision {
@@ -353,14 +298,66 @@ impl<'a> Run<'a> {
             eprintln!("lavatube: {e}");
         }
 
-        let mut summary = Summary::of(
+        let summary = Summary::of(
             &self.id,
             &progress,
             self.cfg.sim.decision_dt(),
             started.elapsed().as_secs_f64(),
             swaps,
         );
-        for m in &members {
+        let summary = self.report(summary, &members)?;
+        if let Some(f) = failed {
+            anyhow::bail!("{f}; logs in {}", self.logs.display());
+        }
+        Ok(Finished {
+            summary,
+            interrupted,
+        })
+    }
+
+    /// Says which run starts, how, and where its directory is.
+    fn announce(&self) {
+        say(
+            &self.bar,
+            format!(
+                "run {}{}: {}, {:?} mode → {}",
+                self.id,
+                if self.resume { " (resumed)" } else { "" },
+                self.cfg.sim.describe_envs(),
+                self.cfg.run.mode,
+                self.dir.display()
+            ),
+        );
+    }
+
+    /// Starts every process of this host's part of the run in [`Self::specs`]'s order; when
+    /// one cannot start, stops those already started.
+    fn start_members(&self, grace: Duration) -> anyhow::Result<Vec<Supervised>> {
+        let mut members: Vec<Supervised> = Vec::new();
+        for spec in self.specs() {
+            match Supervised::start(spec, &self.logs, &self.bar, self.lines) {
+                Ok(s) => members.push(s),
+                Err(e) => {
+                    stop_all(&mut members, &|| {}, grace);
+                    return Err(e);
+                }
+            }
+        }
+        if self.lines == Lines::All {
+            let pids: Vec<String> = members
+                .iter()
+                .map(|s| format!("{} {}", s.role().name(), s.child.pid()))
+                .collect();
+            say(&self.bar, format!("pids: {}", pids.join(", ")));
+        }
+        Ok(members)
+    }
+
+    /// Completes `summary` with each member's pid, exit and restarts and writes it to
+    /// `summary.json`, draws the run's map, and prints the summary line and any learner's
+    /// failed writes.
+    fn report(&self, mut summary: Summary, members: &[Supervised]) -> anyhow::Result<Summary> {
+        for m in members {
             let name = m.role().name().to_string();
             summary.pids.insert(name.clone(), m.child.pid());
             summary
@@ -384,13 +381,7 @@ impl<'a> Run<'a> {
                 run_dir::log_file(&self.dir, learner).display()
             );
         }
-        if let Some(f) = failed {
-            anyhow::bail!("{f}; logs in {}", self.logs.display());
-        }
-        Ok(Finished {
-            summary,
-            interrupted,
-        })
+        Ok(summary)
     }
 }
 
@@ -401,6 +392,22 @@ struct Ports {
     /// Each training learner's policies, for the writes it could not make.
     policies: Vec<(PolicySlot, Receiver<f32, PolicyHeader>)>,
     swap: SwapServer,
+}
+
+impl Ports {
+    /// Subscribes to the run's telemetry, terrain estimates and the policies of `learners`,
+    /// and serves swap requests.
+    fn open(bus: &Bus, learners: &[PolicySlot]) -> anyhow::Result<Self> {
+        Ok(Self {
+            telemetry: bus.receiver(&ipc::TELEMETRY, None)?,
+            terrain: bus.receiver(&ipc::TERRAIN, None)?,
+            policies: learners
+                .iter()
+                .map(|&slot| Ok((slot, bus.receiver(&ipc::POLICY, Some(slot.name()))?)))
+                .collect::<anyhow::Result<_>>()?,
+            swap: bus.swap_server()?,
+        })
+    }
 }
 
 /// The run while it runs: its processes and what they have said.
@@ -421,7 +428,29 @@ struct Supervision<'r, 'a> {
     summaries: Summaries,
 }
 
-impl Supervision<'_, '_> {
+impl<'r, 'a> Supervision<'r, 'a> {
+    /// The run's `members` just started, nothing heard from them yet.
+    fn new(run: &'r Run<'a>, bus: &'r Bus, members: Vec<Supervised>, grace: Duration) -> Self {
+        let sim = &run.cfg.sim;
+        Self {
+            run,
+            bus,
+            members,
+            progress: Progress {
+                both_areas: (sim.flat_envs > 0 && sim.rough_envs > 0) || sim.mixed_envs > 0,
+                ..Progress::default()
+            },
+            failed: None,
+            swaps: 0,
+            sim_finished: None,
+            grace,
+            rate: Rate::default(),
+            rate_now: None,
+            board: Board::new(&run.dir),
+            summaries: Summaries::new(&run.dir, &run.cfg.run.learners, run.cfg.run.summary_every),
+        }
+    }
+
     /// Loops until the run is done; whether it was interrupted.
     fn until_done(&mut self, ports: &Ports) -> anyhow::Result<bool> {
         loop {
@@ -490,68 +519,70 @@ impl Supervision<'_, '_> {
         Ok(())
     }
 
+    /// Looks at every member once, in order, and acts on what happened to each.
     fn watch_members(&mut self) -> anyhow::Result<()> {
         let may_restart = self.sim_finished.is_none();
-        let (logs, bar) = (&self.run.logs, &self.run.bar);
-        for m in &mut self.members {
-            let (role, name) = (m.role(), m.role().name());
-            match m.watch(logs, bar, may_restart)? {
-                Some(Event::Restarting {
-                    status,
-                    after,
-                    recent,
-                }) => {
-                    let cleaned = self.bus.cleanup_dead_nodes();
-                    let budget = m.spec.policy.window().map_or_else(
-                        || format!("{recent} of {} in this run", m.spec.policy.max_restarts),
-                        |w| {
-                            format!(
-                                "{recent} of {} within {} s",
-                                m.spec.policy.max_restarts,
-                                w.as_secs()
-                            )
-                        },
-                    );
-                    say(
-                        bar,
-                        format!(
-                            "{name} exited with {status}; restart {} ({budget}) in {:.1} s ({cleaned} dead node(s) cleaned up)",
-                            m.restarts + 1,
-                            after.as_secs_f64()
-                        ),
-                    );
-                }
-                Some(Event::Restarted { pid }) => {
-                    say(bar, format!("{name} restarted: pid {pid}"));
-                }
-                Some(Event::Exited(status)) if role == Role::Sim && status.success() => {
-                    self.sim_finished = Some(Instant::now());
-                }
-                Some(Event::Exited(status)) if role == Role::Estimator && may_restart => {
-                    // DESIGN §5: without estimates the sim keeps acting on its last ones.
-                    self.bus.cleanup_dead_nodes();
-                    say(
-                        bar,
-                        format!(
-                            "estimator exited with {status} for good; the sim keeps its last terrain estimates"
-                        ),
-                    );
-                }
-                Some(Event::Exited(status)) if role == Role::Recorder && !status.success() => {
-                    say(
-                        bar,
-                        format!(
-                            "recorder exited with {status}; the run goes on without its recording (see its log)"
-                        ),
-                    );
-                }
-                Some(Event::Exited(status)) if !status.success() && self.failed.is_none() => {
-                    self.failed = Some(format!("{name} exited with {status}"));
-                }
-                _ => {}
+        for i in 0..self.members.len() {
+            let (logs, bar) = (&self.run.logs, &self.run.bar);
+            if let Some(event) = self.members[i].watch(logs, bar, may_restart)? {
+                self.on_event(i, event, may_restart);
             }
         }
         Ok(())
+    }
+
+    /// What `event` of member `i` means for the run: a line above the progress bar, the
+    /// sim's finish, or the run's failure.
+    fn on_event(&mut self, i: usize, event: Event, may_restart: bool) {
+        let m = &self.members[i];
+        let (role, name) = (m.role(), m.role().name());
+        let bar = &self.run.bar;
+        match event {
+            Event::Restarting {
+                status,
+                after,
+                recent,
+            } => {
+                let cleaned = self.bus.cleanup_dead_nodes();
+                let budget = restart_budget(&m.spec.policy, recent);
+                say(
+                    bar,
+                    format!(
+                        "{name} exited with {status}; restart {} ({budget}) in {:.1} s ({cleaned} dead node(s) cleaned up)",
+                        m.restarts + 1,
+                        after.as_secs_f64()
+                    ),
+                );
+            }
+            Event::Restarted { pid } => {
+                say(bar, format!("{name} restarted: pid {pid}"));
+            }
+            Event::Exited(status) if role == Role::Sim && status.success() => {
+                self.sim_finished = Some(Instant::now());
+            }
+            Event::Exited(status) if role == Role::Estimator && may_restart => {
+                // DESIGN §5: without estimates the sim keeps acting on its last ones.
+                self.bus.cleanup_dead_nodes();
+                say(
+                    bar,
+                    format!(
+                        "estimator exited with {status} for good; the sim keeps its last terrain estimates"
+                    ),
+                );
+            }
+            Event::Exited(status) if role == Role::Recorder && !status.success() => {
+                say(
+                    bar,
+                    format!(
+                        "recorder exited with {status}; the run goes on without its recording (see its log)"
+                    ),
+                );
+            }
+            Event::Exited(status) if !status.success() && self.failed.is_none() => {
+                self.failed = Some(format!("{name} exited with {status}"));
+            }
+            Event::Exited(_) => {}
+        }
     }
 
     /// Answers one swap request: whether it happened, and what to tell the requester.
@@ -580,6 +611,20 @@ impl Supervision<'_, '_> {
             Err(m) => (false, m),
         }
     }
+}
+
+/// How many restarts `policy` allows and how many of them `recent` has used.
+fn restart_budget(policy: &RestartPolicy, recent: u32) -> String {
+    policy.window().map_or_else(
+        || format!("{recent} of {} in this run", policy.max_restarts),
+        |w| {
+            format!(
+                "{recent} of {} within {} s",
+                policy.max_restarts,
+                w.as_secs()
+            )
+        },
+    )
 }
 
 /// Stops every member's process (see [`ladder::stop`]).
