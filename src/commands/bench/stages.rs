@@ -3,8 +3,8 @@
 //! to the end of their steps, stopped by the runtime's ladder, and read back: the sim's rate,
 //! the reader's tallies and latencies, the learner's metrics, every process's rusage.
 
-use super::Interrupted;
 use super::config::{Measurement, Plan, Stage};
+use super::json::read_json;
 use super::reader::ReaderResult;
 use crate::runtime::{Binaries, Child, Output, Role, Usage, ladder};
 use anyhow::{Context, bail};
@@ -61,6 +61,11 @@ impl RandomPolicy {
         })
     }
 }
+
+/// Ctrl-C or SIGTERM during a bench: stop, clean up, exit 130.
+#[derive(Debug, thiserror::Error)]
+#[error("interrupted")]
+pub struct Interrupted;
 
 /// What a measurement needs from the bench.
 pub struct Ctx<'a> {
@@ -131,12 +136,6 @@ struct SimResult {
     ticks: u64,
     episodes: u64,
     decision_steps_per_s: f64,
-}
-
-fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> anyhow::Result<T> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text).with_context(|| format!("cannot parse {}", path.display()))
 }
 
 /// Updates, mean samples/s and mean policy lag from a learner's `metrics.csv` (numbers and
@@ -223,36 +222,17 @@ pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
     std::fs::write(&cfg_path, cfg.to_toml())
         .with_context(|| format!("cannot write {}", cfg_path.display()))?;
     let started = Instant::now();
-    let deadline = started + Duration::from_secs(ctx.plan.bench.timeout_s);
-    let ticks = ctx.plan.ticks(m.envs);
-    let mut row = Row {
-        stage: m.stage.letter(),
-        stage_name: m.stage.name(),
-        envs: m.envs,
-        threads: m.threads,
-        repeat: m.repeat,
-        effective_threads: m.threads.min(m.envs),
-        mode: ctx.plan.mode(m.stage),
-        ticks,
-        env_steps: ticks * m.envs as u64,
-        wall_s: 0.0,
-        decision_steps_per_s: 0.0,
-        physics_steps_per_s: 0.0,
-        episodes: 0,
-        learner_samples_per_s: None,
-        learner_updates: None,
-        policy_lag_versions: None,
-        transport_latency_p50_us: None,
-        transport_latency_p99_us: None,
-        telemetry_ticks_received: None,
-        telemetry_ticks_missed: None,
-        rollout_chunks_received: None,
-        rollout_chunks_missed: None,
-        processes: BTreeMap::new(),
+    let at = Measuring {
+        ctx,
+        m,
+        dir: &dir,
+        cfg_path: &cfg_path,
+        deadline: started + Duration::from_secs(ctx.plan.bench.timeout_s),
     };
+    let mut row = Row::before(ctx.plan, m);
     let procs = if m.stage.joined() {
         let run_id = format!("{}-{}", ctx.bench_id, m.label());
-        let joined = in_run(ctx, m, &dir, &cfg_path, &run_id, deadline, &mut row);
+        let joined = in_run(&at, &run_id, &mut row);
         // The processes are gone (reaped or killed when `joined` dropped them), and with them
         // every node of the run: its files can go, whatever happened.
         if let Err(e) = ipc::remove_run(&run_id) {
@@ -260,7 +240,7 @@ pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
         }
         joined?
     } else {
-        standalone(ctx, m, &dir, &cfg_path, deadline, &mut row)?
+        standalone(&at, &mut row)?
     };
     row.wall_s = started.elapsed().as_secs_f64();
     row.physics_steps_per_s = row.decision_steps_per_s * cfg.sim.substeps as f64;
@@ -272,26 +252,61 @@ pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
     Ok(row)
 }
 
-/// Stages a and b: `sim-proc` alone.
-fn standalone(
-    ctx: &Ctx,
-    m: &Measurement,
-    dir: &Path,
-    cfg_path: &Path,
+/// One measurement under way: what it measures, its directory and resolved config file, and
+/// when it times out.
+struct Measuring<'a> {
+    ctx: &'a Ctx<'a>,
+    m: &'a Measurement,
+    dir: &'a Path,
+    cfg_path: &'a Path,
     deadline: Instant,
-    row: &mut Row,
-) -> anyhow::Result<Vec<Child>> {
-    let json = dir.join("sim.json");
+}
+
+impl Row {
+    /// Measurement `m`'s row before anything is measured: what it runs, nothing it measured.
+    fn before(plan: &Plan, m: &Measurement) -> Self {
+        let ticks = plan.ticks(m.envs);
+        Self {
+            stage: m.stage.letter(),
+            stage_name: m.stage.name(),
+            envs: m.envs,
+            threads: m.threads,
+            repeat: m.repeat,
+            effective_threads: m.threads.min(m.envs),
+            mode: plan.mode(m.stage),
+            ticks,
+            env_steps: ticks * m.envs as u64,
+            wall_s: 0.0,
+            decision_steps_per_s: 0.0,
+            physics_steps_per_s: 0.0,
+            episodes: 0,
+            learner_samples_per_s: None,
+            learner_updates: None,
+            policy_lag_versions: None,
+            transport_latency_p50_us: None,
+            transport_latency_p99_us: None,
+            telemetry_ticks_received: None,
+            telemetry_ticks_missed: None,
+            rollout_chunks_received: None,
+            rollout_chunks_missed: None,
+            processes: BTreeMap::new(),
+        }
+    }
+}
+
+/// Stages a and b: `sim-proc` alone.
+fn standalone(at: &Measuring, row: &mut Row) -> anyhow::Result<Vec<Child>> {
+    let json = at.dir.join("sim.json");
     let mut args: Vec<String> = vec![
         "--config".into(),
-        cfg_path.display().to_string(),
+        at.cfg_path.display().to_string(),
         "--steps".into(),
         row.ticks.to_string(),
         "--json".into(),
         json.display().to_string(),
         "--controller".into(),
     ];
-    if m.stage == Stage::Physics {
+    if at.m.stage == Stage::Physics {
         args.push("random".into());
     } else {
         // Sampled like the sim in a run, from the same seed: stages b and c step the very
@@ -300,11 +315,11 @@ fn standalone(
             "policy".into(),
             "--sample".into(),
             "--weights".into(),
-            ctx.policy.path.display().to_string(),
+            at.ctx.policy.path.display().to_string(),
         ]);
     }
-    let mut procs = vec![spawn(ctx, Role::Sim, &args, dir)?];
-    watch(ctx, &mut procs, &["sim"], deadline, &mut || Ok(()))?;
+    let mut procs = vec![spawn(at.ctx, Role::Sim, &args, at.dir)?];
+    watch(at.ctx, &mut procs, &["sim"], at.deadline, &mut || Ok(()))?;
     let r: SimResult = read_json(&json)?;
     if r.ticks != row.ticks {
         bail!("sim ran {} ticks, {} asked", r.ticks, row.ticks);
@@ -314,78 +329,26 @@ fn standalone(
     Ok(procs)
 }
 
+/// Where the reader of a run writes its tallies when it ends.
+const READER_JSON: &str = "reader.json";
+
 /// Stages c–f: the sim inside a run, with a reader and, from d on, learner and estimator.
-fn in_run(
-    ctx: &Ctx,
-    m: &Measurement,
-    dir: &Path,
-    cfg_path: &Path,
-    run_id: &str,
-    deadline: Instant,
-    row: &mut Row,
-) -> anyhow::Result<Vec<Child>> {
+fn in_run(at: &Measuring, run_id: &str, row: &mut Row) -> anyhow::Result<Vec<Child>> {
     let bus = Bus::connect(run_id, "bench")?;
     let control = bus.control_notifier()?;
-    let join = |cmd: Option<&str>| -> Vec<String> {
-        let mut a: Vec<String> = cmd.map(String::from).into_iter().collect();
-        a.extend([
-            "--config".into(),
-            cfg_path.display().to_string(),
-            "--run-id".into(),
-            run_id.into(),
-        ]);
-        a
-    };
     // Stage c has no learner: the bench publishes the policy a learner would have.
-    let policy_tx = if m.stage.has_learner() {
+    let policy_tx = if at.m.stage.has_learner() {
         None
     } else {
-        let p = ctx.policy;
+        let p = at.ctx.policy;
         let tx = bus.sender::<f32, PolicyHeader>(&ipc::POLICY, Some("general"), p.weights.len())?;
         tx.send(PolicyHeader::new(&p.layout, 0, 0, p.obs_clip), &p.weights)?;
         Some(tx)
     };
+    let mut procs = vec![start_reader(at, run_id)?];
+    start_run(at, run_id, &mut procs)?;
 
-    let (ready, out) = (dir.join("reader.ready"), dir.join("reader.json"));
-    let reader_args = vec![
-        "bench-reader".into(),
-        "--run-id".into(),
-        run_id.into(),
-        "--out".into(),
-        out.display().to_string(),
-        "--ready".into(),
-        ready.display().to_string(),
-    ];
-    let mut procs = vec![spawn(ctx, Role::Reader, &reader_args, dir)?];
-    // Telemetry has no history: the sim starts only once the reader cannot miss a tick.
-    let ready_by = (Instant::now() + READY_TIMEOUT).min(deadline);
-    while !ready.exists() {
-        if procs[0].poll()?.is_some() {
-            bail!(
-                "the reader exited before subscribing; log: {}",
-                procs[0].log().display()
-            );
-        }
-        ctx.check_interrupt()?;
-        if Instant::now() >= ready_by {
-            bail!(
-                "the reader did not subscribe in time; log: {}",
-                procs[0].log().display()
-            );
-        }
-        std::thread::sleep(POLL);
-    }
-    if m.stage == Stage::Estimator {
-        procs.push(spawn(ctx, Role::Estimator, &join(Some("serve")), dir)?);
-    }
-    if m.stage.has_learner() {
-        let mut a = join(Some("serve"));
-        a.extend(["--out".into(), dir.display().to_string()]);
-        procs.push(spawn(ctx, Role::Learner(PolicySlot::General), &a, dir)?);
-    }
-    procs.push(spawn(ctx, Role::Sim, &join(None), dir)?);
-
-    watch(ctx, &mut procs, &["sim"], deadline, &mut || {
+    watch(at.ctx, &mut procs, &["sim"], at.deadline, &mut || {
         // A late subscriber gets the policy's history only when its publisher acts.
         if let Some(tx) = &policy_tx {
             tx.update_connections()?;
@@ -393,8 +356,14 @@ fn in_run(
         Ok(())
     })?;
     // The learner stops by itself once it has learned from the last chunk.
-    watch(ctx, &mut procs, &["learner"], deadline, &mut || Ok(()))?;
-    let grace = Duration::from_millis(ctx.plan.runtime.supervise.grace_ms);
+    watch(
+        at.ctx,
+        &mut procs,
+        &["learner"],
+        at.deadline,
+        &mut || Ok(()),
+    )?;
+    let grace = Duration::from_millis(at.ctx.plan.runtime.supervise.grace_ms);
     let mut children: Vec<&mut Child> = procs.iter_mut().collect();
     ladder::stop(
         &mut children,
@@ -408,13 +377,83 @@ fn in_run(
     if let Some(f) = procs.iter().find_map(Child::failure) {
         bail!("{f}");
     }
+    read_run(at, &procs[0], row)?;
+    drop((policy_tx, control, bus));
+    Ok(procs)
+}
 
-    let r: ReaderResult = read_json(&out)?;
-    let expected_chunks = ctx.plan.chunks(m.envs);
+/// The arguments of a process joining run `run_id`: its subcommand, if any, then the config.
+fn join_args(cmd: Option<&str>, cfg_path: &Path, run_id: &str) -> Vec<String> {
+    let mut a: Vec<String> = cmd.map(String::from).into_iter().collect();
+    a.extend([
+        "--config".into(),
+        cfg_path.display().to_string(),
+        "--run-id".into(),
+        run_id.into(),
+    ]);
+    a
+}
+
+/// Starts the reader of run `run_id` and waits until it has subscribed: telemetry has no
+/// history, so the sim starts only once the reader cannot miss a tick.
+fn start_reader(at: &Measuring, run_id: &str) -> anyhow::Result<Child> {
+    let (ready, out) = (at.dir.join("reader.ready"), at.dir.join(READER_JSON));
+    let reader_args = vec![
+        "bench-reader".into(),
+        "--run-id".into(),
+        run_id.into(),
+        "--out".into(),
+        out.display().to_string(),
+        "--ready".into(),
+        ready.display().to_string(),
+    ];
+    let mut reader = spawn(at.ctx, Role::Reader, &reader_args, at.dir)?;
+    let ready_by = (Instant::now() + READY_TIMEOUT).min(at.deadline);
+    while !ready.exists() {
+        if reader.poll()?.is_some() {
+            bail!(
+                "the reader exited before subscribing; log: {}",
+                reader.log().display()
+            );
+        }
+        at.ctx.check_interrupt()?;
+        if Instant::now() >= ready_by {
+            bail!(
+                "the reader did not subscribe in time; log: {}",
+                reader.log().display()
+            );
+        }
+        std::thread::sleep(POLL);
+    }
+    Ok(reader)
+}
+
+/// Starts the rest of run `run_id` after its reader: the estimator (stage f), the learner
+/// (from stage d on), and the sim last.
+fn start_run(at: &Measuring, run_id: &str, procs: &mut Vec<Child>) -> anyhow::Result<()> {
+    let (ctx, dir) = (at.ctx, at.dir);
+    let join = |cmd: Option<&str>| join_args(cmd, at.cfg_path, run_id);
+    if at.m.stage == Stage::Estimator {
+        procs.push(spawn(ctx, Role::Estimator, &join(Some("serve")), dir)?);
+    }
+    if at.m.stage.has_learner() {
+        let mut a = join(Some("serve"));
+        a.extend(["--out".into(), dir.display().to_string()]);
+        procs.push(spawn(ctx, Role::Learner(PolicySlot::General), &a, dir)?);
+    }
+    procs.push(spawn(ctx, Role::Sim, &join(None), dir)?);
+    Ok(())
+}
+
+/// Fills `row` from what a finished run left: the reader's tallies and latencies, and from
+/// stage d on the learner's metrics.
+fn read_run(at: &Measuring, reader: &Child, row: &mut Row) -> anyhow::Result<()> {
+    let r: ReaderResult = read_json(&at.dir.join(READER_JSON))?;
+    let expected_chunks = at.ctx.plan.chunks(at.m.envs);
     row.decision_steps_per_s = r.decision_steps_per_s.with_context(|| {
         format!(
             "the reader saw too few ticks; log: {}",
-            procs[0].log().display()
+            reader.log().display()
         )
     })?;
     row.episodes = r.episode_ends;
@@ -424,14 +463,13 @@ fn in_run(
     row.telemetry_ticks_missed = Some(row.ticks.saturating_sub(r.ticks));
     row.rollout_chunks_received = Some(r.chunks);
     row.rollout_chunks_missed = Some(expected_chunks.saturating_sub(r.chunks));
-    if m.stage.has_learner() {
-        let (updates, sps, lag) = learner_metrics(&dir.join(run_dir::METRICS_CSV))?;
+    if at.m.stage.has_learner() {
+        let (updates, sps, lag) = learner_metrics(&at.dir.join(run_dir::METRICS_CSV))?;
         row.learner_updates = Some(updates);
         row.learner_samples_per_s = Some(sps);
         row.policy_lag_versions = Some(lag);
     }
-    drop((policy_tx, control, bus));
-    Ok(procs)
+    Ok(())
 }
 
 #[cfg(test)]
