@@ -3,7 +3,7 @@
 //! the one-way latencies it recorded when the launcher closes the socket.
 
 use super::link::read_header;
-use super::{
+use super::protocol::{
     ACK, ACKS, CONTROL, Kind, Latency, OVER_SOCKET, RECORD, ROLLOUT, Stamp, TELEMETRY, TIMEOUT,
     WEIGHTS,
 };

@@ -1,7 +1,7 @@
 //! Both transports' sending side as one [`Link`]: iceoryx2 (the runtime's own channels) and
 //! the Unix socket, whose frames are a stamp, a length and the payload.
 
-use super::{Stamp, TIMEOUT};
+use super::protocol::{Stamp, TIMEOUT};
 use anyhow::{Context, bail};
 use common::ipc::{Receiver, Sender};
 use iceoryx2::prelude::ZeroCopySend;

@@ -12,116 +12,30 @@
 //! What "received" means differs exactly as the transports do: an iceoryx2 reader has the
 //! payload in place in shared memory; a socket reader has copied it out of the kernel.
 
-use crate::runtime::{Child, Output, Role};
 mod echo;
 mod link;
+mod protocol;
 
+pub use echo::{EchoArgs, echo};
+pub use protocol::Kind;
+
+use super::json::read_json;
+use crate::runtime::{Child, Output, Role};
 use anyhow::{Context, bail};
 use common::Transition;
-use common::ipc::{Bus, Capacity, Channel, Receiver, Sender};
+use common::ipc::{Bus, Receiver, Sender};
 use common::wire::{self, EnvTick};
-pub use echo::{EchoArgs, echo};
-use iceoryx2::prelude::ZeroCopySend;
 use link::{FRAME_HEADER, IpcLink, Link, SocketLink, encode};
-use serde::{Deserialize, Serialize};
+use protocol::{
+    ACK, ACK_EVERY, ACKS, CONTROL, Latency, OVER_SOCKET, RECORD, ROLLOUT, Stamp, TELEMETRY,
+    TIMEOUT, WEIGHTS, WINDOW,
+};
+use serde::Serialize;
 use std::collections::BTreeMap;
 use std::io::{ErrorKind, Write};
 use std::os::unix::net::{UnixListener, UnixStream};
 use std::path::Path;
 use std::time::{Duration, Instant};
-
-/// The header of every bench message on both transports. Local to the launcher (it is both
-/// ends), so it lives here rather than in `common::wire`.
-#[derive(Debug, Clone, Copy, Default, PartialEq, ZeroCopySend)]
-#[repr(C)]
-#[type_name("lavatube.BenchStamp.v1")]
-pub struct Stamp {
-    pub seq: u64,
-    /// [`wire::monotonic_ns`] just before the send.
-    pub sent_ns: u64,
-    pub test: u32,
-    /// Bits `RECORD`, `ACK`, `CONTROL`, `OVER_SOCKET`; payload kind in bits 8–15 of a control frame.
-    pub flags: u32,
-}
-
-/// The receiver records this message's one-way latency.
-const RECORD: u32 = 1;
-/// The receiver acknowledges after this message (with the count received so far).
-const ACK: u32 = 2;
-/// A control frame (socket only): a test starts; `seq` is its message count.
-const CONTROL: u32 = 4;
-/// Control: the test runs over the socket, not iceoryx2.
-const OVER_SOCKET: u32 = 8;
-
-/// Messages in flight in the throughput phase, and how often the receiver acknowledges.
-const WINDOW: u64 = 16;
-const ACK_EVERY: u64 = 4;
-/// No progress for this long fails the comparison (a dead or stuck partner).
-const TIMEOUT: Duration = Duration::from_secs(60);
-
-/// The bench channels: room for a whole window, one writer, one reader.
-const fn channel<T>(service: &'static str) -> Channel<T, Stamp> {
-    Channel::new(
-        service,
-        Capacity {
-            buffer: 2 * WINDOW as usize,
-            history: 0,
-            publishers: 1,
-            subscribers: 1,
-        },
-    )
-}
-const TELEMETRY: Channel<EnvTick, Stamp> = channel("bench/telemetry");
-const ROLLOUT: Channel<Transition, Stamp> = channel("bench/rollout");
-const WEIGHTS: Channel<f32, Stamp> = channel("bench/weights");
-const ACKS: Channel<u64, Stamp> = channel("bench/acks");
-
-/// Which message of the runtime a payload copies.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Kind {
-    /// One telemetry tick: `N` [`EnvTick`]s.
-    Telemetry,
-    /// One rollout chunk: `T × N + N` [`Transition`]s.
-    Rollout,
-    /// One policy: the flat actor's `f32` weights.
-    Weights,
-}
-
-impl Kind {
-    pub fn name(self) -> &'static str {
-        match self {
-            Kind::Telemetry => "telemetry",
-            Kind::Rollout => "rollout chunk",
-            Kind::Weights => "weights",
-        }
-    }
-
-    fn code(self) -> u32 {
-        match self {
-            Kind::Telemetry => 0,
-            Kind::Rollout => 1,
-            Kind::Weights => 2,
-        }
-    }
-
-    fn from_code(c: u32) -> anyhow::Result<Self> {
-        Ok(match c {
-            0 => Kind::Telemetry,
-            1 => Kind::Rollout,
-            2 => Kind::Weights,
-            _ => bail!("unknown payload kind {c}"),
-        })
-    }
-
-    fn element_bytes(self) -> usize {
-        match self {
-            Kind::Telemetry => size_of::<EnvTick>(),
-            Kind::Rollout => size_of::<Transition>(),
-            Kind::Weights => size_of::<f32>(),
-        }
-    }
-}
 
 /// One payload to compare.
 #[derive(Debug, Clone, Copy)]
@@ -174,14 +88,6 @@ pub struct TransportRow {
     pub iceoryx2: LinkResult,
     pub uds: LinkResult,
     pub ratios: Ratios,
-}
-
-/// Latencies the echo recorded in one latency phase.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-pub struct Latency {
-    pub count: usize,
-    pub p50_us: f64,
-    pub p99_us: f64,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -389,12 +295,49 @@ pub fn compare(
     each: &mut dyn FnMut(&Payload),
 ) -> anyhow::Result<Vec<TransportRow>> {
     let ipc = IpcSide::new(bus, payloads, weights)?;
+    let out = dir.join("echo.json");
+    let (mut echo, mut stream) = start_echo(bus, launcher, dir, &out)?;
+    // The echo subscribed before connecting; make sure the publishers know.
+    ipc.update_connections()?;
+    let ran = run_tests(&ipc, &mut stream, payloads, messages as u64, each);
+    drop(stream);
+    let outcome = echo_finished(&mut echo, ran)?;
+    let latencies: BTreeMap<u32, Latency> = read_json(&out)?;
+    payloads
+        .iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let (shm, uds) = (
+                link_result(i, false, &outcome, &latencies)?,
+                link_result(i, true, &outcome, &latencies)?,
+            );
+            Ok(TransportRow {
+                payload: p.kind,
+                envs: p.envs,
+                elements: p.elements,
+                bytes: p.bytes(),
+                messages,
+                iceoryx2: shm,
+                uds,
+                ratios: Ratios::of(shm, uds),
+            })
+        })
+        .collect()
+}
+
+/// Spawns `lavatube bench-echo` from `launcher` on run `bus`, its latencies to go to `out`,
+/// and accepts its connection on a socket of its own; the echo and the connection.
+fn start_echo(
+    bus: &Bus,
+    launcher: &Path,
+    dir: &Path,
+    out: &Path,
+) -> anyhow::Result<(Child, UnixStream)> {
     // Socket paths are limited to ~100 bytes: a short one in the temp directory.
     let sock = std::env::temp_dir().join(format!("lavatube-{}.sock", bus.run()));
     let _ = std::fs::remove_file(&sock);
     let listener =
         UnixListener::bind(&sock).with_context(|| format!("cannot bind {}", sock.display()))?;
-    let out = dir.join("echo.json");
     let args: Vec<String> = vec![
         "bench-echo".into(),
         "--run-id".into(),
@@ -407,12 +350,12 @@ pub fn compare(
     let mut echo = Child::spawn(Role::Echo.name(), launcher, &args, dir, Output::File)?;
     let accepted = accept(&listener, &mut echo);
     let _ = std::fs::remove_file(&sock);
-    let mut stream = accepted?;
-    // The echo subscribed before connecting; make sure the publishers know.
-    ipc.update_connections()?;
-    let ran = run_tests(&ipc, &mut stream, payloads, messages as u64, each);
-    drop(stream);
-    // Closing the socket ends the echo; a test that failed because the echo died says how.
+    Ok((echo, accepted?))
+}
+
+/// Waits for the echo to end, which closing the socket asks of it; the tests' outcome. A
+/// test that failed because the echo died says how.
+fn echo_finished(echo: &mut Child, ran: anyhow::Result<Outcome>) -> anyhow::Result<Outcome> {
     let finished = echo.wait_for(TIMEOUT)?;
     if let Some(f) = echo.failure() {
         return Err(match ran {
@@ -420,56 +363,51 @@ pub fn compare(
             Ok(_) => anyhow::anyhow!(f),
         });
     }
-    let (tests, rates) = ran?;
+    let outcome = ran?;
     if !finished {
         bail!(
             "the echo process did not finish; log: {}",
             echo.log().display()
         );
     }
-    let latencies: BTreeMap<u32, Latency> = {
-        let text = std::fs::read_to_string(&out)
-            .with_context(|| format!("cannot read {}", out.display()))?;
-        serde_json::from_str(&text).with_context(|| format!("cannot parse {}", out.display()))?
-    };
+    Ok(outcome)
+}
 
-    let mut rows = Vec::new();
-    for (i, p) in payloads.iter().enumerate() {
-        let link = |over_socket: bool| -> anyhow::Result<LinkResult> {
-            let test = tests
-                .iter()
-                .position(|t| *t == (i, over_socket, Phase::Latency))
-                .and_then(|t| u32::try_from(t).ok())
-                .context("latency test missing")?;
-            let l = latencies
-                .get(&test)
-                .with_context(|| format!("the echo recorded no latencies for test {test}"))?;
-            Ok(LinkResult {
-                latency_p50_us: l.p50_us,
-                latency_p99_us: l.p99_us,
-                messages_per_s: rates
-                    .get(&(i, over_socket))
-                    .copied()
-                    .context("throughput missing")?,
-            })
-        };
-        let (shm, uds) = (link(false)?, link(true)?);
-        rows.push(TransportRow {
-            payload: p.kind,
-            envs: p.envs,
-            elements: p.elements,
-            bytes: p.bytes(),
-            messages,
-            iceoryx2: shm,
-            uds,
-            ratios: Ratios {
-                latency_p50_uds_over_iceoryx2: uds.latency_p50_us / shm.latency_p50_us,
-                latency_p99_uds_over_iceoryx2: uds.latency_p99_us / shm.latency_p99_us,
-                messages_per_s_iceoryx2_over_uds: shm.messages_per_s / uds.messages_per_s,
-            },
-        });
+/// Payload `i`'s numbers over one transport: the latencies the echo recorded in its latency
+/// test, the throughput measured here.
+fn link_result(
+    i: usize,
+    over_socket: bool,
+    (tests, rates): &Outcome,
+    latencies: &BTreeMap<u32, Latency>,
+) -> anyhow::Result<LinkResult> {
+    let test = tests
+        .iter()
+        .position(|t| *t == (i, over_socket, Phase::Latency))
+        .and_then(|t| u32::try_from(t).ok())
+        .context("latency test missing")?;
+    let l = latencies
+        .get(&test)
+        .with_context(|| format!("the echo recorded no latencies for test {test}"))?;
+    Ok(LinkResult {
+        latency_p50_us: l.p50_us,
+        latency_p99_us: l.p99_us,
+        messages_per_s: rates
+            .get(&(i, over_socket))
+            .copied()
+            .context("throughput missing")?,
+    })
+}
+
+impl Ratios {
+    /// How `uds` compares with `shm` (iceoryx2) for one payload.
+    fn of(shm: LinkResult, uds: LinkResult) -> Self {
+        Self {
+            latency_p50_uds_over_iceoryx2: uds.latency_p50_us / shm.latency_p50_us,
+            latency_p99_uds_over_iceoryx2: uds.latency_p99_us / shm.latency_p99_us,
+            messages_per_s_iceoryx2_over_uds: shm.messages_per_s / uds.messages_per_s,
+        }
     }
-    Ok(rows)
 }
 
 #[cfg(test)]
