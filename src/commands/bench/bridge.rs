@@ -15,7 +15,7 @@ use common::wire::{PolicyHeader, RolloutHeader};
 use common::{Config, Transition};
 use serde::Serialize;
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Chunks in flight in the throughput phase: below the rollout service's buffer of 8. A
@@ -55,85 +55,42 @@ pub fn measure(
     messages: usize,
 ) -> anyhow::Result<Bridged> {
     let dir = dir.join("bridge");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut cfg = cfg.clone();
-    cfg.net.key_file = Some(write_key(&dir)?);
-    let cfg_path = dir.join("config.toml");
-    std::fs::write(&cfg_path, cfg.to_toml())
-        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    let cfg_path = keyed_config(&dir, &mut cfg)?;
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     let (learner_run, sim_run) = (format!("{bench_id}-bl"), format!("{bench_id}-bs"));
     let (learner_bus, sim_bus) = (
         Bus::connect(&learner_run, "bench")?,
         Bus::connect(&sim_run, "bench")?,
     );
-    let n = cfg.sim.num_envs();
-    let t = cfg.ppo.rollout_steps(n);
-    let general = Some(PolicySlot::General.name());
-    let ports = Ports {
-        chunk_tx: sim_bus.sender(&ipc::ROLLOUT, None, t * n + n)?,
-        chunk_rx: learner_bus.receiver(&ipc::ROLLOUT, None)?,
-        policy_tx: learner_bus.sender(&ipc::POLICY, general, weights.len())?,
-        policy_rx: sim_bus.receiver(&ipc::POLICY, general)?,
-    };
-    let join = |side: &str, run: &str, extra: &[String]| -> Vec<String> {
-        let mut v = vec![
-            side.to_string(),
-            "--config".into(),
-            cfg_path.display().to_string(),
-            "--run-id".into(),
-            run.to_string(),
-        ];
-        v.extend_from_slice(extra);
-        v
-    };
-    let spawn = |run: &str, args: &[String]| -> anyhow::Result<Child> {
-        let log_dir = dir.join(run);
-        std::fs::create_dir_all(&log_dir)?;
-        Child::spawn(
-            Role::Bridge.name(),
-            &bins.bridge,
-            args,
-            &log_dir,
-            Output::File,
-        )
+    let ports = Ports::open(&cfg, &learner_bus, &sim_bus, weights.len())?;
+    let starter = Starter {
+        bins,
+        dir: &dir,
+        cfg_path: &cfg_path,
     };
     // The learner host first, with a policy to give: the sim host then joins a run under way.
     ports.policy_tx.send(first_policy(&cfg, weights), weights)?;
-    let mut bridges = vec![spawn(
+    let mut bridges = vec![starter.spawn(
+        "learner",
         &learner_run,
-        &join(
-            "learner",
-            &learner_run,
-            &["--listen".into(), endpoint.clone()],
-        ),
+        &["--listen".into(), endpoint.clone()],
     )?];
     let measured = listening(&mut bridges[0]).and_then(|()| {
         let joined = Instant::now();
-        bridges.push(spawn(
+        bridges.push(starter.spawn(
+            "sim",
             &sim_run,
-            &join(
-                "sim",
-                &sim_run,
-                &[
-                    "--connect".into(),
-                    endpoint.clone(),
-                    "--source".into(),
-                    "1".into(),
-                ],
-            ),
+            &[
+                "--connect".into(),
+                endpoint.clone(),
+                "--source".into(),
+                "1".into(),
+            ],
         )?);
         run(&ports, &cfg, weights, messages, (&mut bridges, joined))
     });
-    for bus in [&learner_bus, &sim_bus] {
-        ipc::request_shutdown(&bus.control_notifier()?)?;
-    }
-    for b in &mut bridges {
-        if !b.wait_for(TIMEOUT)? {
-            b.signal(libc::SIGKILL);
-            b.wait_for(TIMEOUT)?;
-        }
-    }
+    stop(&[&learner_bus, &sim_bus], &mut bridges)?;
     drop((ports, learner_bus, sim_bus));
     for run in [&learner_run, &sim_run] {
         if let Err(e) = ipc::remove_run(run) {
@@ -141,6 +98,75 @@ pub fn measure(
         }
     }
     measured
+}
+
+impl Ports {
+    /// The sim host's chunk publisher and policy subscriber on `sim_bus` and the learner
+    /// host's chunk subscriber and policy publisher on `learner_bus`, sized for `cfg`'s
+    /// rollout chunks and policies of `weights` floats.
+    fn open(
+        cfg: &Config,
+        learner_bus: &Bus,
+        sim_bus: &Bus,
+        weights: usize,
+    ) -> anyhow::Result<Self> {
+        let n = cfg.sim.num_envs();
+        let t = cfg.ppo.rollout_steps(n);
+        let general = Some(PolicySlot::General.name());
+        Ok(Self {
+            chunk_tx: sim_bus.sender(&ipc::ROLLOUT, None, t * n + n)?,
+            chunk_rx: learner_bus.receiver(&ipc::ROLLOUT, None)?,
+            policy_tx: learner_bus.sender(&ipc::POLICY, general, weights)?,
+            policy_rx: sim_bus.receiver(&ipc::POLICY, general)?,
+        })
+    }
+}
+
+/// Starts `bridge-proc`s on the bench's config file, each with its log in a directory of its
+/// run's name.
+struct Starter<'a> {
+    bins: &'a Binaries,
+    dir: &'a Path,
+    cfg_path: &'a Path,
+}
+
+impl Starter<'_> {
+    /// Starts the bridge of host `side` (`learner` or `sim`) on run `run`, with `extra`
+    /// arguments after the config and run id.
+    fn spawn(&self, side: &str, run: &str, extra: &[String]) -> anyhow::Result<Child> {
+        let mut args = vec![
+            side.to_string(),
+            "--config".into(),
+            self.cfg_path.display().to_string(),
+            "--run-id".into(),
+            run.to_string(),
+        ];
+        args.extend_from_slice(extra);
+        let log_dir = self.dir.join(run);
+        std::fs::create_dir_all(&log_dir)?;
+        Child::spawn(
+            Role::Bridge.name(),
+            &self.bins.bridge,
+            &args,
+            &log_dir,
+            Output::File,
+        )
+    }
+}
+
+/// Asks both hosts' runs to shut down, then waits for each bridge, killing one that does not
+/// stop within [`TIMEOUT`].
+fn stop(buses: &[&Bus], bridges: &mut [Child]) -> anyhow::Result<()> {
+    for bus in buses {
+        ipc::request_shutdown(&bus.control_notifier()?)?;
+    }
+    for b in bridges {
+        if !b.wait_for(TIMEOUT)? {
+            b.signal(libc::SIGKILL);
+            b.wait_for(TIMEOUT)?;
+        }
+    }
+    Ok(())
 }
 
 /// The learner host's first policy, version 0 of the general slot.
@@ -328,6 +354,9 @@ pub struct SimRates {
     pub bridged_over_local: f64,
 }
 
+/// How long each launcher of [`sim_rates`] may take.
+const LAUNCH_TIMEOUT: Duration = Duration::from_secs(900);
+
 /// Runs the runtime config in async mode for `steps` env steps, first on one host, then as
 /// a learner host and a sim host (real launchers, one after the other), and reads each
 /// sim's rate from its run's `summary.json`.
@@ -339,45 +368,16 @@ pub fn sim_rates(
     steps: u64,
 ) -> anyhow::Result<SimRates> {
     let dir = dir.join("bridge-sim");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let mut cfg = cfg.clone();
     cfg.run.mode = common::config::LearnMode::Async;
     cfg.run.total_steps = steps;
     cfg.run.out_dir = dir.join("runs");
-    cfg.net.key_file = Some(write_key(&dir)?);
-    let cfg_path = dir.join("config.toml");
-    std::fs::write(&cfg_path, cfg.to_toml())
-        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    let cfg_path = keyed_config(&dir, &mut cfg)?;
     let config = cfg_path.display().to_string();
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
-    let timeout = Duration::from_secs(900);
     let launch = |name: &'static str, args: &[&str]| -> anyhow::Result<Child> {
         let args: Vec<String> = args.iter().map(|a| (*a).to_string()).collect();
         Child::spawn(name, launcher, &args, &dir, Output::File)
-    };
-    let finish = |mut c: Child| -> anyhow::Result<()> {
-        if !c.wait_for(timeout)? {
-            c.signal(libc::SIGINT);
-            c.wait_for(timeout)?;
-            bail!(
-                "{} did not finish within {timeout:?}; log: {}",
-                c.name,
-                c.log().display()
-            );
-        }
-        c.failure().map_or(Ok(()), |f| Err(anyhow::anyhow!(f)))
-    };
-    let rate = |run: &str| -> anyhow::Result<f64> {
-        let path = cfg
-            .run
-            .out_dir
-            .join(run)
-            .join(common::run_dir::SUMMARY_JSON);
-        let text = std::fs::read_to_string(&path)
-            .with_context(|| format!("cannot read {}", path.display()))?;
-        let summary: crate::runtime::Summary = serde_json::from_str(&text)
-            .with_context(|| format!("{} is no run summary", path.display()))?;
-        Ok(summary.env_steps_per_second)
     };
     let (local, learner_host, sim_host) = (
         format!("{bench_id}-local"),
@@ -418,7 +418,11 @@ pub fn sim_rates(
     )?;
     finish(joined)?;
     finish(listening)?;
-    let (local_steps_per_s, bridged_steps_per_s) = (rate(&local)?, rate(&sim_host)?);
+    let out_dir = &cfg.run.out_dir;
+    let (local_steps_per_s, bridged_steps_per_s) = (
+        env_steps_per_s(out_dir, &local)?,
+        env_steps_per_s(out_dir, &sim_host)?,
+    );
     Ok(SimRates {
         env_steps: steps,
         local_steps_per_s,
@@ -427,8 +431,45 @@ pub fn sim_rates(
     })
 }
 
+/// Waits for launcher `c` to finish; fails when it does not within [`LAUNCH_TIMEOUT`]
+/// (interrupting it) or fails.
+fn finish(mut c: Child) -> anyhow::Result<()> {
+    let timeout = LAUNCH_TIMEOUT;
+    if !c.wait_for(timeout)? {
+        c.signal(libc::SIGINT);
+        c.wait_for(timeout)?;
+        bail!(
+            "{} did not finish within {timeout:?}; log: {}",
+            c.name,
+            c.log().display()
+        );
+    }
+    c.failure().map_or(Ok(()), |f| Err(anyhow::anyhow!(f)))
+}
+
+/// The env steps per second in the `summary.json` of run `run` under `out_dir`.
+fn env_steps_per_s(out_dir: &Path, run: &str) -> anyhow::Result<f64> {
+    let path = out_dir.join(run).join(common::run_dir::SUMMARY_JSON);
+    let text = std::fs::read_to_string(&path)
+        .with_context(|| format!("cannot read {}", path.display()))?;
+    let summary: crate::runtime::Summary = serde_json::from_str(&text)
+        .with_context(|| format!("{} is no run summary", path.display()))?;
+    Ok(summary.env_steps_per_second)
+}
+
+/// Makes `dir`, gives `cfg` a fresh shared key there and writes it as `dir/config.toml`, the
+/// config the processes started there read; its path.
+fn keyed_config(dir: &Path, cfg: &mut Config) -> anyhow::Result<PathBuf> {
+    std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    cfg.net.key_file = Some(write_key(dir)?);
+    let cfg_path = dir.join("config.toml");
+    std::fs::write(&cfg_path, cfg.to_toml())
+        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    Ok(cfg_path)
+}
+
 /// A fresh 32-byte shared key in `dir/run.key`.
-fn write_key(dir: &Path) -> anyhow::Result<std::path::PathBuf> {
+fn write_key(dir: &Path) -> anyhow::Result<PathBuf> {
     let key = dir.join("run.key");
     let mut secret = [0u8; 32];
     std::fs::File::open("/dev/urandom")
