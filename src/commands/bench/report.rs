@@ -402,6 +402,23 @@ impl Report {
     /// The tables and the acceptance checks, as printed.
     pub fn text(&self) -> String {
         let mut t = String::new();
+        self.heading(&mut t);
+        if !self.stages.is_empty() {
+            self.stage_tables(&mut t);
+        }
+        if !self.bridge.rows.is_empty() {
+            self.bridge_table(&mut t);
+        }
+        if !self.transport.is_empty() {
+            self.transport_table(&mut t);
+        }
+        let _ = writeln!(t);
+        self.acceptance_lines(&mut t);
+        t
+    }
+
+    /// The first line: the bench, the machine and its load, the ground and the policy.
+    fn heading(&self, t: &mut String) {
         let m = &self.machine;
         let load = |l: Option<f64>| l.map_or("?".into(), |l| format!("{l:.2}"));
         let _ = writeln!(
@@ -421,88 +438,94 @@ impl Report {
             self.settings.policy_hidden,
             self.settings.policy_params,
         );
-        if !self.stages.is_empty() {
-            self.stage_tables(&mut t);
-        }
-        if !self.bridge.rows.is_empty() {
+    }
+
+    /// The bridge table, the time a joining sim host waits for its policy, and one sim's rate
+    /// behind the bridge against on one host.
+    fn bridge_table(&self, t: &mut String) {
+        let _ = writeln!(
+            t,
+            "\n{:<26} {:>8} {:>22} {:>10} {:>8}",
+            "through the Zenoh bridge", "bytes", "latency p50 / p99", "msg/s", "MB/s"
+        );
+        for b in &self.bridge.rows {
+            let us = |x: Option<f64>| x.map_or("?".into(), |x| format!("{x:.0}"));
             let _ = writeln!(
                 t,
-                "\n{:<26} {:>8} {:>22} {:>10} {:>8}",
-                "through the Zenoh bridge", "bytes", "latency p50 / p99", "msg/s", "MB/s"
-            );
-            for b in &self.bridge.rows {
-                let us = |x: Option<f64>| x.map_or("?".into(), |x| format!("{x:.0}"));
-                let _ = writeln!(
-                    t,
-                    "{:<26} {:>8} {:>22} {:>10} {:>8.1}",
-                    b.what,
-                    b.bytes,
-                    format!("{} / {} µs", us(b.latency_p50_us), us(b.latency_p99_us)),
-                    thousands(b.messages_per_s),
-                    b.mb_per_s
-                );
-            }
-            let _ = writeln!(
-                t,
-                "a sim host joining a run under way has its policy {:.0} ms after its bridge starts",
-                self.bridge.join_to_policy_ms
-            );
-            let s = &self.bridge_sim;
-            let _ = writeln!(
-                t,
-                "one sim, async, {} env steps: {} steps/s behind the bridge, {} on one host ({:.2}×)",
-                s.env_steps,
-                thousands(s.bridged_steps_per_s),
-                thousands(s.local_steps_per_s),
-                s.bridged_over_local
+                "{:<26} {:>8} {:>22} {:>10} {:>8.1}",
+                b.what,
+                b.bytes,
+                format!("{} / {} µs", us(b.latency_p50_us), us(b.latency_p99_us)),
+                thousands(b.messages_per_s),
+                b.mb_per_s
             );
         }
-        if !self.transport.is_empty() {
+        let _ = writeln!(
+            t,
+            "a sim host joining a run under way has its policy {:.0} ms after its bridge starts",
+            self.bridge.join_to_policy_ms
+        );
+        let s = &self.bridge_sim;
+        let _ = writeln!(
+            t,
+            "one sim, async, {} env steps: {} steps/s behind the bridge, {} on one host ({:.2}×)",
+            s.env_steps,
+            thousands(s.bridged_steps_per_s),
+            thousands(s.local_steps_per_s),
+            s.bridged_over_local
+        );
+    }
+
+    /// The same bytes over iceoryx2 and over the socket, payload by payload, and the ratios.
+    fn transport_table(&self, t: &mut String) {
+        let _ = writeln!(
+            t,
+            "\n{:<18} {:>8} {:>17} {:>10} {:>17} {:>10} {:>6} {:>6} {:>6}",
+            "same bytes over",
+            "bytes",
+            "iceoryx2 p50/p99",
+            "msg/s",
+            "socket p50/p99",
+            "msg/s",
+            "p50 ×",
+            "p99 ×",
+            "msg ×"
+        );
+        for x in &self.transport {
+            let label = match x.envs {
+                Some(n) => format!("{} N={n}", x.payload.name()),
+                None => x.payload.name().to_string(),
+            };
             let _ = writeln!(
                 t,
-                "\n{:<18} {:>8} {:>17} {:>10} {:>17} {:>10} {:>6} {:>6} {:>6}",
-                "same bytes over",
-                "bytes",
-                "iceoryx2 p50/p99",
-                "msg/s",
-                "socket p50/p99",
-                "msg/s",
-                "p50 ×",
-                "p99 ×",
-                "msg ×"
-            );
-            for x in &self.transport {
-                let label = match x.envs {
-                    Some(n) => format!("{} N={n}", x.payload.name()),
-                    None => x.payload.name().to_string(),
-                };
-                let _ = writeln!(
-                    t,
-                    "{:<18} {:>8} {:>17} {:>10} {:>17} {:>10} {:>6.2} {:>6.2} {:>6.2}",
-                    label,
-                    x.bytes,
-                    format!(
-                        "{:.1} / {:.1} µs",
-                        x.iceoryx2.latency_p50_us, x.iceoryx2.latency_p99_us
-                    ),
-                    thousands(x.iceoryx2.messages_per_s),
-                    format!(
-                        "{:.1} / {:.1} µs",
-                        x.uds.latency_p50_us, x.uds.latency_p99_us
-                    ),
-                    thousands(x.uds.messages_per_s),
-                    x.ratios.latency_p50_uds_over_iceoryx2,
-                    x.ratios.latency_p99_uds_over_iceoryx2,
-                    x.ratios.messages_per_s_iceoryx2_over_uds,
-                );
-            }
-            let _ = writeln!(
-                t,
-                "(×: socket latency / iceoryx2 latency, iceoryx2 msg/s / socket msg/s; above 1 favours shared memory)"
+                "{:<18} {:>8} {:>17} {:>10} {:>17} {:>10} {:>6.2} {:>6.2} {:>6.2}",
+                label,
+                x.bytes,
+                format!(
+                    "{:.1} / {:.1} µs",
+                    x.iceoryx2.latency_p50_us, x.iceoryx2.latency_p99_us
+                ),
+                thousands(x.iceoryx2.messages_per_s),
+                format!(
+                    "{:.1} / {:.1} µs",
+                    x.uds.latency_p50_us, x.uds.latency_p99_us
+                ),
+                thousands(x.uds.messages_per_s),
+                x.ratios.latency_p50_uds_over_iceoryx2,
+                x.ratios.latency_p99_uds_over_iceoryx2,
+                x.ratios.messages_per_s_iceoryx2_over_uds,
             );
         }
+        let _ = writeln!(
+            t,
+            "(×: socket latency / iceoryx2 latency, iceoryx2 msg/s / socket msg/s; above 1 favours shared memory)"
+        );
+    }
+
+    /// One line per acceptance check: stage c against stage b, then each learning stage
+    /// against its target.
+    fn acceptance_lines(&self, t: &mut String) {
         let a = &self.acceptance;
-        let _ = writeln!(t);
         if let Some(worst) = a
             .publish_over_policy
             .iter()
@@ -542,7 +565,6 @@ impl Report {
                 );
             }
         }
-        t
     }
 }
 
