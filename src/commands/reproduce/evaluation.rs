@@ -2,7 +2,7 @@
 //! courses, alone in `sim-proc` or switching through the full runtime.
 
 use super::legs::{Cell, Evaluated, Legs, legs_in};
-use super::pipeline::Pipeline;
+use super::stages::Pipeline;
 use crate::runtime;
 use anyhow::Context;
 use common::Config;

@@ -22,10 +22,10 @@
 //! g. `report.md`: every table beside the paper's numbers, figures, learning curves, and the
 //!    paper's claims about Table 1 checked leg by leg on the legs both models drove.
 //!
-//! Modules: [`pipeline`] runs the stages in order, [`stages`] keeps their directories and
-//! done markers, [`evaluation`] drives the seeded courses whose [`legs`] pair up,
-//! [`selection`] picks the specialists, [`statistics`] and [`checks`] compare the models,
-//! [`report`] writes the Markdown.
+//! Modules: [`pipeline`] runs the stages in order, [`stages`] holds the pipeline's setting
+//! and keeps the stages' directories and done markers, [`evaluation`] drives the seeded
+//! courses whose [`legs`] pair up, [`selection`] picks the specialists, [`statistics`] and
+//! [`checks`] compare the models, [`report`] writes the Markdown.
 
 mod checks;
 mod evaluation;
@@ -41,7 +41,7 @@ use anyhow::Context;
 use common::Config;
 use common::config::PolicySlot;
 use legs::Evaluated;
-use pipeline::Pipeline;
+use stages::Pipeline;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 

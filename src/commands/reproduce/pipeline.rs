@@ -4,58 +4,13 @@ use super::evaluation::eval_areas;
 use super::legs::Evaluated;
 use super::report::report;
 use super::selection::{Role, roles, specialists};
+use super::stages::Pipeline;
 use crate::runtime;
 use anyhow::Context;
 use common::config::{Acting, AreaKind, PolicySlot};
 use common::{Config, run_dir};
 use std::path::PathBuf;
 use std::process::Command;
-
-/// The pipeline's directories and binaries.
-pub(super) struct Pipeline {
-    pub(super) base: Config,
-    pub(super) out: PathBuf,
-    pub(super) quiet: bool,
-}
-
-impl Pipeline {
-    /// The terrain kinds the world has an area of: SPEC S8's flat and rough by default.
-    pub(super) fn kinds(&self) -> Vec<AreaKind> {
-        self.base.sim.terrain.kinds()
-    }
-
-    /// Whether the world is the paper's two terrains, where stage d is SPEC S7's analysis;
-    /// with more kinds it is `estimator-proc kinds`, whose named classifier estimates online.
-    pub(super) fn paper_terrains(&self) -> bool {
-        paper_terrains(&self.base)
-    }
-
-    /// The base config with `n` envs on each terrain kind's area.
-    fn envs(&self, n: usize) -> Config {
-        let mut c = self.base.clone();
-        c.sim.spread(&self.kinds(), n);
-        c
-    }
-
-    /// `cfg` estimating terrain online with stage d's classifier: with more than the paper's
-    /// two terrains, the named K-kind classifier, which is never refitted.
-    pub(super) fn estimate_with_stage_d(&self, cfg: &mut Config) {
-        if self.paper_terrains() {
-            cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
-        } else {
-            cfg.estimator.kinds_model = Some(self.stage_dir("d-analysis").join(KINDS_JSON));
-        }
-        cfg.estimator.refit_every = 0;
-    }
-}
-
-/// Whether `cfg`'s world has SPEC S1's flat and rough areas and no other.
-pub(super) fn paper_terrains(cfg: &Config) -> bool {
-    cfg.sim.terrain.kinds() == [AreaKind::Flat, AreaKind::Rough]
-}
-
-/// Stage d's named classifier with more than two terrain kinds.
-const KINDS_JSON: &str = "kinds.json";
 
 /// Where stage f keeps its cells.
 const CELLS_JSON: &str = "cells.json";

@@ -3,8 +3,8 @@
 
 use super::checks::{Check, SHAPE_CHECKS_HEADING, checks, shape_checks};
 use super::legs::{Cell, Evaluated};
-use super::pipeline::Pipeline;
 use super::selection::{GENERAL, Selection, chosen_before, roles};
+use super::stages::Pipeline;
 use super::statistics::mean_ci;
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};

@@ -4,7 +4,7 @@
 //! `e-select/selection.json`.
 
 use super::legs::{Cell, Legs, common_legs};
-use super::pipeline::Pipeline;
+use super::stages::Pipeline;
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};
 use std::path::{Path, PathBuf};

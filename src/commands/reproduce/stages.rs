@@ -1,15 +1,61 @@
-//! Per-stage bookkeeping: each stage's directory, its `stage.json` done marker, a fresh start
+//! The pipeline's setting ([`Pipeline`]: its base config and output directory) and
+//! per-stage bookkeeping: each stage's directory, its `stage.json` done marker, a fresh start
 //! for an unfinished one, training runs and the checkpoints they leave.
 
 use super::super::run::execute;
-use super::pipeline::Pipeline;
 use crate::runtime;
 use anyhow::Context;
 use common::Config;
-use common::config::PolicySlot;
+use common::config::{AreaKind, PolicySlot};
 use common::run_dir::{self, learner_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+/// The pipeline's directories and binaries.
+pub(super) struct Pipeline {
+    pub(super) base: Config,
+    pub(super) out: PathBuf,
+    pub(super) quiet: bool,
+}
+
+impl Pipeline {
+    /// The terrain kinds the world has an area of: SPEC S8's flat and rough by default.
+    pub(super) fn kinds(&self) -> Vec<AreaKind> {
+        self.base.sim.terrain.kinds()
+    }
+
+    /// Whether the world is the paper's two terrains, where stage d is SPEC S7's analysis;
+    /// with more kinds it is `estimator-proc kinds`, whose named classifier estimates online.
+    pub(super) fn paper_terrains(&self) -> bool {
+        paper_terrains(&self.base)
+    }
+
+    /// The base config with `n` envs on each terrain kind's area.
+    pub(super) fn envs(&self, n: usize) -> Config {
+        let mut c = self.base.clone();
+        c.sim.spread(&self.kinds(), n);
+        c
+    }
+
+    /// `cfg` estimating terrain online with stage d's classifier: with more than the paper's
+    /// two terrains, the named K-kind classifier, which is never refitted.
+    pub(super) fn estimate_with_stage_d(&self, cfg: &mut Config) {
+        if self.paper_terrains() {
+            cfg.estimator.model = Some(self.stage_dir("d-analysis").join("results.json"));
+        } else {
+            cfg.estimator.kinds_model = Some(self.stage_dir("d-analysis").join(KINDS_JSON));
+        }
+        cfg.estimator.refit_every = 0;
+    }
+}
+
+/// Whether `cfg`'s world has SPEC S1's flat and rough areas and no other.
+fn paper_terrains(cfg: &Config) -> bool {
+    cfg.sim.terrain.kinds() == [AreaKind::Flat, AreaKind::Rough]
+}
+
+/// Stage d's named classifier with more than two terrain kinds.
+const KINDS_JSON: &str = "kinds.json";
 
 impl Pipeline {
     pub(super) fn stage_dir(&self, name: &str) -> PathBuf {
