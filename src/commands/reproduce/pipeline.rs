@@ -3,13 +3,13 @@
 use super::evaluation::eval_areas;
 use super::legs::Evaluated;
 use super::report::report;
-use super::selection::{Role, roles, specialists};
+use super::selection::{Role, Selection, roles, specialists};
 use super::stages::Pipeline;
 use crate::runtime;
 use anyhow::Context;
 use common::config::{Acting, AreaKind, PolicySlot};
 use common::{Config, run_dir};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 /// Where stage f keeps its cells.
@@ -35,78 +35,110 @@ pub(super) fn evaluated_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Evalua
 
 /// One seed's pipeline, stages a–g in `p.out`.
 pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
-    let base = &p.base;
-    let out = &p.out;
-    let r = &base.reproduce;
-    std::fs::write(out.join(run_dir::CONFIG_TOML), base.to_toml())?;
-
-    // One general model acts in stages a and b: no env switches, so no estimator runs.
-    let mut a = base.clone();
-    a.sim.only_in(AreaKind::Flat, r.flat_envs);
-    a.run.total_steps = r.flat_steps;
-    a.run.estimator = false;
-    p.train("a-flat", a)?;
-
-    let mut b = p.envs(r.envs_per_area);
-    b.run.total_steps = r.general_steps;
-    b.run.init_from = Some(p.checkpoint("a-flat", PolicySlot::General)?);
-    b.run.estimator = false;
-    p.train("b-general", b)?;
-
+    std::fs::write(p.out.join(run_dir::CONFIG_TOML), p.base.to_toml())?;
+    train_flat(p)?;
+    train_general(p)?;
     let policies = p.stage_dir("policies");
     std::fs::create_dir_all(&policies)?;
     let general = policies.join("general.policy");
     p.export(&p.checkpoint("b-general", PolicySlot::General)?, &general)?;
+    let traces = collect(p, &general)?;
+    analyse(p, &traces)?;
+    let roles = roles(&p.kinds());
+    train_specialists(p, &roles)?;
+    let selections = specialists(p)?;
+    let models = models(p, &policies, general, &roles, &selections)?;
+    let cells = evaluate(p, &models, &roles, &selections)?;
+    let report = report(p, &cells, &selections)?;
+    let path = p.out.join("report.md");
+    std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
+    println!("report: {}", path.display());
+    Ok(cells)
+}
 
+/// Stage a: the initial flat model, from scratch. One general model acts in stages a and b:
+/// no env switches, so no estimator runs.
+fn train_flat(p: &Pipeline) -> anyhow::Result<()> {
+    let r = &p.base.reproduce;
+    let mut a = p.base.clone();
+    a.sim.only_in(AreaKind::Flat, r.flat_envs);
+    a.run.total_steps = r.flat_steps;
+    a.run.estimator = false;
+    p.train("a-flat", a)
+}
+
+/// Stage b: the general model on every terrain kind's area, warm-started from stage a.
+fn train_general(p: &Pipeline) -> anyhow::Result<()> {
+    let r = &p.base.reproduce;
+    let mut b = p.envs(r.envs_per_area);
+    b.run.total_steps = r.general_steps;
+    b.run.init_from = Some(p.checkpoint("a-flat", PolicySlot::General)?);
+    b.run.estimator = false;
+    p.train("b-general", b)
+}
+
+/// Stage c: telemetry of the general model's policy file `general` in every area; where it
+/// is.
+fn collect(p: &Pipeline, general: &Path) -> anyhow::Result<PathBuf> {
+    let r = &p.base.reproduce;
     let traces = p.stage_dir("c-collect").join("traces.csv");
     if !p.done("c-collect") {
         std::fs::create_dir_all(p.fresh("c-collect")?)?;
         p.say("c-collect: the general model in every area (SPEC S7)");
         let n = r.collect_envs.unwrap_or(r.envs_per_area);
-        p.drive(&p.envs(n), &general, r.collect_steps, &traces)?;
+        p.drive(&p.envs(n), general, r.collect_steps, &traces)?;
         p.finish("c-collect", serde_json::json!({ "traces": traces }))?;
     }
+    Ok(traces)
+}
 
-    let analysis = p.stage_dir("d-analysis");
-    if !p.done("d-analysis") {
-        p.fresh("d-analysis")?;
-        let windows = base
-            .estimator
-            .windows
-            .iter()
-            .map(std::string::ToString::to_string)
-            .collect::<Vec<_>>()
-            .join(",");
-        let mut cmd = Command::new(runtime::locate("estimator-proc")?);
-        if p.paper_terrains() {
-            p.say("d-analysis: Table 3, Figs. 5-8");
-            cmd.arg("analyze")
-                .arg(&traces)
-                .args(["--windows", &windows]);
-        } else {
-            p.say("d-analysis: the terrain kinds' classifier, named on the recording");
-            cmd.arg("kinds").arg(&traces);
-        }
-        let status = cmd
-            .arg("--out")
-            .arg(&analysis)
-            .arg("--config")
-            .arg(out.join(run_dir::CONFIG_TOML))
-            .status()?;
-        anyhow::ensure!(
-            status.success(),
-            "estimator-proc on {} failed",
-            traces.display()
-        );
-        p.finish("d-analysis", serde_json::json!({ "windows": windows }))?;
+/// Stage d on stage c's `traces`: Table 3 and Figs. 5-8 on the paper's two terrains, the
+/// K-kind classifier named on the recording with more.
+fn analyse(p: &Pipeline, traces: &Path) -> anyhow::Result<()> {
+    if p.done("d-analysis") {
+        return Ok(());
     }
+    let analysis = p.stage_dir("d-analysis");
+    p.fresh("d-analysis")?;
+    let windows = p
+        .base
+        .estimator
+        .windows
+        .iter()
+        .map(std::string::ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(",");
+    let mut cmd = Command::new(runtime::locate("estimator-proc")?);
+    if p.paper_terrains() {
+        p.say("d-analysis: Table 3, Figs. 5-8");
+        cmd.arg("analyze").arg(traces).args(["--windows", &windows]);
+    } else {
+        p.say("d-analysis: the terrain kinds' classifier, named on the recording");
+        cmd.arg("kinds").arg(traces);
+    }
+    let status = cmd
+        .arg("--out")
+        .arg(&analysis)
+        .arg("--config")
+        .arg(p.out.join(run_dir::CONFIG_TOML))
+        .status()?;
+    anyhow::ensure!(
+        status.success(),
+        "estimator-proc on {} failed",
+        traces.display()
+    );
+    p.finish("d-analysis", serde_json::json!({ "windows": windows }))
+}
 
-    let roles = roles(&p.kinds());
+/// Stage e: one specialist per role fine-tuned at once from stage b (or from new weights),
+/// acting by switching.
+fn train_specialists(p: &Pipeline, roles: &[Role]) -> anyhow::Result<()> {
+    let r = &p.base.reproduce;
     let mut e = p.envs(r.envs_per_area);
     e.run.total_steps = r.finetune_steps;
     specialists_start(
         &mut e,
-        &roles,
+        roles,
         p.checkpoint("b-general", PolicySlot::General)?,
     );
     e.sim.acting = Acting::Switch;
@@ -120,45 +152,57 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     if r.specialist_candidates > 0 {
         e.ppo.milestone_every = p.milestone_every();
     }
-    p.train("e-specialists", e)?;
-    let selections = specialists(p)?;
+    p.train("e-specialists", e)
+}
+
+/// Every model stage f evaluates, each with its policy file in `policies`: the general
+/// model's (`general`), then each specialist of `selections` exported there.
+fn models(
+    p: &Pipeline,
+    policies: &Path,
+    general: PathBuf,
+    roles: &[Role],
+    selections: &[Selection],
+) -> anyhow::Result<Vec<(&'static str, PathBuf)>> {
     let mut models = vec![("general", general)];
-    for (role, s) in roles.iter().zip(&selections) {
+    for (role, s) in roles.iter().zip(selections) {
         let weights = policies.join(format!("{}.policy", role.model.to_lowercase()));
         p.export(s.checkpoint(), &weights)?;
         models.push((role.model, weights));
     }
+    Ok(models)
+}
 
+/// Stage f: every model alone in every evaluation area, then switching between the chosen
+/// specialists in each; its cells, kept from an earlier run when it finished.
+fn evaluate(
+    p: &Pipeline,
+    models: &[(&'static str, PathBuf)],
+    roles: &[Role],
+    selections: &[Selection],
+) -> anyhow::Result<Vec<Evaluated>> {
+    if let Some(cells) = evaluated_before(p)? {
+        return Ok(cells);
+    }
     let eval = p.stage_dir("f-eval");
-    let cells_path = eval.join(CELLS_JSON);
-    let cells: Vec<Evaluated> = if let Some(cells) = evaluated_before(p)? {
-        cells
-    } else {
-        std::fs::create_dir_all(p.fresh("f-eval")?)?;
-        let mut cells = Vec::new();
-        let areas = eval_areas(&p.kinds());
-        for (name, weights) in &models {
-            for &area in &areas {
-                cells.push(p.evaluate_policy(name, weights, area, p.test_courses(), &eval)?);
-            }
-        }
-        let frozen = roles
-            .iter()
-            .map(|r| r.slot)
-            .zip(selections.iter().map(|s| s.checkpoint().to_path_buf()))
-            .collect();
+    std::fs::create_dir_all(p.fresh("f-eval")?)?;
+    let mut cells = Vec::new();
+    let areas = eval_areas(&p.kinds());
+    for (name, weights) in models {
         for &area in &areas {
-            cells.push(p.switching(area, &frozen, &eval)?);
+            cells.push(p.evaluate_policy(name, weights, area, p.test_courses(), &eval)?);
         }
-        std::fs::write(&cells_path, serde_json::to_string(&cells)?)?;
-        p.finish("f-eval", serde_json::json!({ "cells": cells.len() }))?;
-        cells
-    };
-
-    let report = report(p, &cells, &selections)?;
-    let path = out.join("report.md");
-    std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
-    println!("report: {}", path.display());
+    }
+    let frozen = roles
+        .iter()
+        .map(|r| r.slot)
+        .zip(selections.iter().map(|s| s.checkpoint().to_path_buf()))
+        .collect();
+    for &area in &areas {
+        cells.push(p.switching(area, &frozen, &eval)?);
+    }
+    std::fs::write(eval.join(CELLS_JSON), serde_json::to_string(&cells)?)?;
+    p.finish("f-eval", serde_json::json!({ "cells": cells.len() }))?;
     Ok(cells)
 }
 
