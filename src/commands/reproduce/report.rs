@@ -2,6 +2,7 @@
 //! seeds with every number as mean ± 95 % CI.
 
 use super::checks::{Check, SHAPE_CHECKS_HEADING, checks, shape_checks};
+use super::evaluation::eval_areas;
 use super::legs::{Cell, Evaluated};
 use super::selection::{GENERAL, Selection, chosen_before, roles};
 use super::stages::Pipeline;
@@ -44,7 +45,7 @@ fn table_1_cell(runs: &Runs, i: usize) -> (String, String) {
                 .map(|c| Cell::of(&c.legs, p.base.sim.decision_dt()))
         })
         .collect();
-    let success: Vec<f64> = cells.iter().map(super::legs::Cell::success_pct).collect();
+    let success: Vec<f64> = cells.iter().map(Cell::success_pct).collect();
     let reach: Vec<f64> = cells
         .iter()
         .filter(|c| c.successes > 0)
@@ -137,30 +138,7 @@ fn table_3(runs: &Runs) -> anyhow::Result<std::collections::BTreeMap<u64, String
 /// The report over several seeds: every number as mean ± 95 % CI. With `beside` (another
 /// pipeline's runs over the same seeds, `--beside`), each of its numbers is beside ours.
 pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result<String> {
-    // The header cells and the alignment row of `titles`, beside ours, when there are any.
-    let extra = |titles: &[&str], rule: &str| match beside {
-        None => (String::new(), String::new()),
-        Some(_) => (
-            titles.iter().map(|t| format!(" beside: {t} |")).collect(),
-            rule.repeat(titles.len()),
-        ),
-    };
-    let (head, rule) = extra(&["success %", "reach s (mean)"], "---:|");
-    let mut md = format!(
-        "# lavatube reproduce over {} seeds\n\n\
-         Every number is the mean over seeds ± the half-width of its 95 % confidence interval \
-         (Student's t); each seed's own report is in `seed-<seed>/report.md`.{}\n\n\
-         ## Table 1\n\n\
-         | model | area | success % | reach s (mean) |{head} paper: success % |\n\
-         |---|---|---:|---:|{rule}---:|\n",
-        runs.len(),
-        beside
-            .and_then(|b| b.first())
-            .map_or(String::new(), |(p, _)| format!(
-                " Columns headed \"beside\" are the pipeline in `{}` over the same seeds.",
-                p.out.parent().unwrap_or(&p.out).display()
-            )),
-    );
+    let mut md = seeds_heading(runs, beside);
     let Some((_, first)) = runs.first() else {
         return Ok(md);
     };
@@ -176,7 +154,49 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
             area.name()
         );
     }
-    let (head, _) = extra(
+    md += &seeds_shape_checks(runs, beside);
+    md += &seeds_selection(runs)?;
+    md += &seeds_table_3(runs, beside)?;
+    Ok(md)
+}
+
+/// The header cells and the alignment row of `titles`, beside ours, when there is a
+/// pipeline `beside`.
+fn beside_columns(beside: Option<&Runs>, titles: &[&str], rule: &str) -> (String, String) {
+    match beside {
+        None => (String::new(), String::new()),
+        Some(_) => (
+            titles.iter().map(|t| format!(" beside: {t} |")).collect(),
+            rule.repeat(titles.len()),
+        ),
+    }
+}
+
+/// The seeds report's title, what its numbers are, and the head of its Table 1.
+fn seeds_heading(runs: &Runs, beside: Option<&Runs>) -> String {
+    let (head, rule) = beside_columns(beside, &["success %", "reach s (mean)"], "---:|");
+    format!(
+        "# lavatube reproduce over {} seeds\n\n\
+         Every number is the mean over seeds ± the half-width of its 95 % confidence interval \
+         (Student's t); each seed's own report is in `seed-<seed>/report.md`.{}\n\n\
+         ## Table 1\n\n\
+         | model | area | success % | reach s (mean) |{head} paper: success % |\n\
+         |---|---|---:|---:|{rule}---:|\n",
+        runs.len(),
+        beside
+            .and_then(|b| b.first())
+            .map_or(String::new(), |(p, _)| format!(
+                " Columns headed \"beside\" are the pipeline in `{}` over the same seeds.",
+                p.out.parent().unwrap_or(&p.out).display()
+            )),
+    )
+}
+
+/// The claims about Table 1 over seeds: each claim's differences as mean ± CI and each
+/// seed's verdict.
+fn seeds_shape_checks(runs: &Runs, beside: Option<&Runs>) -> String {
+    let (head, _) = beside_columns(
+        beside,
         &[
             "success difference, pp",
             "reach-time advantage, s",
@@ -185,7 +205,7 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
         "",
     );
     let rule = beside.map_or("", |_| "---:|---:|---|");
-    md += &format!(
+    let mut md = format!(
         "\n{SHAPE_CHECKS_HEADING}\n\nPer seed on the legs both models drove (see each seed's report); the differences are means over seeds ± 95 % CI.\n\n| claim | success difference, pp | reach-time advantage, s | holds, per seed |{head}\n|---|---:|---:|---|{rule}\n"
     );
     let per_seed = checks_per_seed(runs);
@@ -203,6 +223,12 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
         });
         md += &format!("| {key} | {d} | {faster} | {verdicts} |{beside_cols}\n");
     }
+    md
+}
+
+/// Each seed's chosen specialists, when its pipeline validated candidates; nothing when none
+/// did.
+fn seeds_selection(runs: &Runs) -> anyhow::Result<String> {
     let mut chosen = String::new();
     // None without `specialist-candidates`, whatever an earlier config left in `e-select`.
     for (p, _) in runs
@@ -216,13 +242,18 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
             );
         }
     }
-    if !chosen.is_empty() {
-        md += &format!(
-            "\n{SELECTION_HEADING}\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
-        );
+    if chosen.is_empty() {
+        return Ok(chosen);
     }
-    let (head, rule) = extra(&["accuracy %"], "---:|");
-    md += &format!(
+    Ok(format!(
+        "\n{SELECTION_HEADING}\n\n| seed | model | chosen |\n|---:|---|---|\n{chosen}"
+    ))
+}
+
+/// Table 3 over seeds beside the paper's accuracies.
+fn seeds_table_3(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result<String> {
+    let (head, rule) = beside_columns(beside, &["accuracy %"], "---:|");
+    let mut md = format!(
         "\n## Table 3: accuracy by window\n\n| window | accuracy % |{head} paper % |\n|---:|---:|{rule}---:|\n"
     );
     let theirs = beside.map(table_3).transpose()?;
@@ -275,11 +306,35 @@ fn paper_cell(model: &str, area: AreaKind) -> Option<PaperCell> {
         .and_then(|(_, a)| a.get(area.code() as usize).copied())
 }
 
+/// One seed's `report.md`: Table 1 beside the paper's, the claims about it, the specialists'
+/// choice, stage d's analysis, the learning curves and the maps.
 pub(super) fn report(
     p: &Pipeline,
     cells: &[Evaluated],
     selections: &[Selection],
 ) -> anyhow::Result<String> {
+    let r = &p.base.reproduce;
+    let mut md = table_1(p, cells);
+    for s in selections {
+        if s.candidates[s.chosen].label == GENERAL {
+            md += &format!(
+                "\n{} is the general model: no checkpoint of its fine-tuning drove {} ground better on the validation courses (stage e, below).\n",
+                s.model,
+                s.area.name()
+            );
+        }
+    }
+    md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
+    md += &selection_table(selections, r.validation_episodes);
+    md += &analysis(p)?;
+    md += &learning_curves(p);
+    md += &maps(p);
+    Ok(md)
+}
+
+/// The report's title and Table 1: each cell's success rate and reach time beside the
+/// paper's, on the ground each stage drove.
+fn table_1(p: &Pipeline, cells: &[Evaluated]) -> String {
     let mut md = String::from("# lavatube reproduce\n\n");
     md += "The paper's pipeline (SPEC S6-S8) regenerated by `lavatube reproduce`; the resolved \
            config is `config.toml` beside this report.\n\n## Table 1: success rate and reach time\n\n";
@@ -305,17 +360,12 @@ pub(super) fn report(
             cell.reach()
         );
     }
-    for s in selections {
-        if s.candidates[s.chosen].label == GENERAL {
-            md += &format!(
-                "\n{} is the general model: no checkpoint of its fine-tuning drove {} ground better on the validation courses (stage e, below).\n",
-                s.model,
-                s.area.name()
-            );
-        }
-    }
-    md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
-    md += &selection_table(selections, r.validation_episodes);
+    md
+}
+
+/// Stage d's own report under a heading of this one: Table 3 and Figs. 5-8 on the paper's
+/// terrains, the terrain kinds told apart with more.
+fn analysis(p: &Pipeline) -> anyhow::Result<String> {
     let analysis = p.stage_dir("d-analysis");
     let (file, heading) = if p.paper_terrains() {
         ("results.md", "Table 3 and Figs. 5-8")
@@ -324,7 +374,7 @@ pub(super) fn report(
     };
     let table3 = std::fs::read_to_string(analysis.join(file))
         .with_context(|| format!("cannot read {}", analysis.join(file).display()))?;
-    md += &format!("\n## {heading} (stage d)\n\n");
+    let mut md = format!("\n## {heading} (stage d)\n\n");
     // Its own headings one level down, its figure links relative to this report.
     let table3 = table3
         .replace("](", "](d-analysis/")
@@ -332,7 +382,12 @@ pub(super) fn report(
     md += table3.strip_prefix("# ").map_or(&table3[..], |t| {
         t.split_once('\n').map_or(t, |(_, rest)| rest)
     });
-    md += "\n## Learning curves\n\n";
+    Ok(md)
+}
+
+/// The learning curves of stages a and b and of every specialist of stage e that drew one.
+fn learning_curves(p: &Pipeline) -> String {
+    let mut md = String::from("\n## Learning curves\n\n");
     let specialists = roles(&p.kinds())
         .into_iter()
         .map(|r| ("e-specialists", r.slot));
@@ -349,14 +404,19 @@ pub(super) fn report(
             md += &format!("![{stage} {}]({})\n\n", slot.name(), rel.display());
         }
     }
-    md += "\n## Maps\n\nEach robot's last episodes, its path coloured by the estimator's class: the general model's training (stage b), then switching on each evaluation ground's first courses (stage f).\n\n";
+    md
+}
+
+/// The maps of stage b's training and of switching on each evaluation ground, those drawn.
+fn maps(p: &Pipeline) -> String {
+    let mut md = String::from(
+        "\n## Maps\n\nEach robot's last episodes, its path coloured by the estimator's class: the general model's training (stage b), then switching on each evaluation ground's first courses (stage f).\n\n",
+    );
     let maps = std::iter::once(p.stage_dir("b-general")).chain(
-        super::evaluation::eval_areas(&p.kinds())
-            .into_iter()
-            .map(|a| {
-                p.stage_dir("f-eval")
-                    .join(format!("switching-{}-0", a.name()))
-            }),
+        eval_areas(&p.kinds()).into_iter().map(|a| {
+            p.stage_dir("f-eval")
+                .join(format!("switching-{}-0", a.name()))
+        }),
     );
     for dir in maps {
         let png = dir.join(run_dir::MAP_PNG);
@@ -365,7 +425,7 @@ pub(super) fn report(
             md += &format!("![map {}]({})\n\n", rel.display(), rel.display());
         }
     }
-    Ok(md)
+    md
 }
 
 #[cfg(test)]
