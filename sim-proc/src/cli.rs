@@ -5,6 +5,8 @@ use crate::SimError;
 use crate::controllers::{
     Controller, GoToController, PolicyController, RandomController, ReplayController,
 };
+use crate::outputs::TickFiles;
+use crate::serve::RunPart;
 use crate::standalone::{Outputs, Summary};
 use anyhow::Context;
 use clap::Parser;
@@ -100,7 +102,15 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
         cfg.run.seed = seed;
     }
     if let Some(run) = &args.run_id {
-        crate::serve::serve(&cfg, run, &args)?;
+        let part = RunPart {
+            source: args.source,
+            resume: args.resume,
+            files: TickFiles {
+                telemetry: args.telemetry.as_deref(),
+                track: args.track.as_deref(),
+            },
+        };
+        crate::serve::serve(&cfg, run, &part)?;
         return Ok(Summary::default());
     }
     let mut controller = controller(&args, &cfg)?;

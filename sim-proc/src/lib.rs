@@ -25,6 +25,7 @@ pub mod task;
 pub mod telemetry_csv;
 pub mod terrain;
 pub mod track;
+mod waiting;
 
 pub use cli::{Args, run};
 pub use env::{Env, SharedTerrain, StepInfo};

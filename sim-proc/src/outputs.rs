@@ -3,15 +3,24 @@
 //! classes it reads back from `terrain`.
 
 use crate::Fleet;
-use crate::cli::Args;
 use crate::driver::Driver;
 use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::track::SimTrack;
 use common::Config;
 use common::ipc::{self, Bus, Receiver, Sender};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
+use std::path::Path;
 use std::time::Duration;
 
+/// The files a sim in a run writes as it steps, each when asked for: the telemetry CSV
+/// (`--telemetry`) and the track (`--track`).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TickFiles<'a> {
+    pub telemetry: Option<&'a Path>,
+    pub track: Option<&'a Path>,
+}
+
+/// The sim's per-tick outputs: its services, its files and the estimator's classes.
 pub struct TickOutputs {
     tele_tx: Sender<EnvTick, TickHeader>,
     terrain_rx: Receiver<TerrainEstimate, TerrainHeader>,
@@ -24,24 +33,16 @@ pub struct TickOutputs {
 }
 
 impl TickOutputs {
-    /// The run's `telemetry` and `terrain` services, and the files `args` asks for.
-    pub fn open(bus: &Bus, cfg: &Config, args: &Args) -> anyhow::Result<Self> {
+    /// The run's `telemetry` and `terrain` services, and the `files` asked for.
+    pub fn open(bus: &Bus, cfg: &Config, files: &TickFiles) -> anyhow::Result<Self> {
         let n = cfg.sim.num_envs();
         Ok(Self {
             tele_tx: bus
                 .sender(&ipc::TELEMETRY, None, n)?
                 .with_wake_interval(Duration::from_micros(cfg.sim.telemetry_notify_us as u64)),
             terrain_rx: bus.receiver(&ipc::TERRAIN, None)?,
-            csv: args
-                .telemetry
-                .as_deref()
-                .map(TelemetryCsv::append)
-                .transpose()?,
-            track: args
-                .track
-                .as_deref()
-                .map(|p| SimTrack::append(p, n))
-                .transpose()?,
+            csv: files.telemetry.map(TelemetryCsv::append).transpose()?,
+            track: files.track.map(|p| SimTrack::append(p, n)).transpose()?,
             classes: vec![wire::CLASS_UNKNOWN; n],
             ticks: vec![EnvTick::default(); n],
             tick: 0,

@@ -8,49 +8,22 @@ use crate::Fleet;
 use crate::controllers::PolicyController;
 use crate::driver::Driver;
 use crate::env::SharedTerrain;
-use crate::outputs::TickOutputs;
+use crate::outputs::{TickFiles, TickOutputs};
 use crate::switching::{PolicySet, Switcher};
 use crate::terrain::Terrain;
+use crate::waiting::{Nag, POLL};
 use anyhow::Context;
 use common::config::{Acting, LearnMode, PolicySlot};
-use common::ipc::{self, Bus, Receiver};
+use common::ipc::{self, Bus, Receiver, Sender};
 use common::refusals::Refusals;
 use common::wire::{PolicyHeader, RolloutHeader};
 use common::{Config, Policy, Transition};
 use std::time::{Duration, Instant};
 
-/// How long to sleep between checks while waiting for a policy (or a gym client).
-pub(crate) const POLL: Duration = Duration::from_millis(100);
 /// How often the stepping loop looks for a shutdown and, in async mode, for new policies.
 /// Each look is system calls (the control channel's socket, the signal check); a tick of one
 /// env takes about 0.2 ms, and a look on every one of them cost more than publishing it.
 const LOOK_EVERY: Duration = Duration::from_millis(1);
-
-/// Paces "still waiting" warnings: due once per `every` of waiting.
-pub(crate) struct Nag {
-    since: Instant,
-    next: Duration,
-    every: Duration,
-}
-
-impl Nag {
-    pub(crate) fn new(every: Duration) -> Self {
-        Self {
-            since: Instant::now(),
-            next: every,
-            every,
-        }
-    }
-
-    /// Seconds waited so far, when a warning is due.
-    pub(crate) fn due(&mut self) -> Option<u64> {
-        let waited = self.since.elapsed();
-        (waited >= self.next).then(|| {
-            self.next += self.every;
-            waited.as_secs()
-        })
-    }
-}
 
 /// The policy services the sim listens to, one per slot (DESIGN §5), and what it holds.
 struct Inbox {
@@ -176,128 +149,237 @@ fn answers(h: &PolicyHeader, sent: u64, learner: u32) -> bool {
     h.chunks_seen >= sent || h.learner != learner
 }
 
+/// The sim's part in a run, as its command line gives it.
+#[derive(Debug, Clone, Copy)]
+pub struct RunPart<'a> {
+    /// This sim's source id in its rollout chunks (`--source`).
+    pub source: u32,
+    /// Count env steps on from the learners' checkpoints (`--resume`).
+    pub resume: bool,
+    /// The files it writes as it steps.
+    pub files: TickFiles<'a>,
+}
+
 /// Runs the simulator in run `run_id` until `run.total-steps` or a shutdown request; with
 /// `sim.acting = "external"` a gym client acts instead ([`crate::external`]).
-pub fn serve(cfg: &Config, run_id: &str, args: &crate::cli::Args) -> anyhow::Result<()> {
+pub fn serve(cfg: &Config, run_id: &str, part: &RunPart) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "sim")?;
-    let mut outputs = TickOutputs::open(&bus, cfg, args)?;
+    let mut outputs = TickOutputs::open(&bus, cfg, &part.files)?;
     let terrain = SharedTerrain::new(Terrain::build(&cfg.sim.terrain)?, cfg.sim.terrain.collider);
     if cfg.sim.acting == Acting::External {
-        return crate::external::serve(cfg, &bus, &mut outputs, &terrain, args.source);
+        return crate::external::serve(cfg, &bus, &mut outputs, &terrain, part.source);
     }
     let control = bus.control_listener()?;
-    let resume = args.resume;
+    let stop_requested = || bus.stop_requested(&control);
     let n = cfg.sim.num_envs();
     let t_steps = cfg.ppo.rollout_steps(n);
     let rollout_tx =
         bus.sender::<Transition, RolloutHeader>(&ipc::ROLLOUT, None, t_steps * n + n)?;
     // DESIGN §9: each sim host steps episodes of its own.
-    let seed = common::Rng::source_seed(cfg.run.seed, args.source);
-    let mut fleet = Fleet::new(&cfg.sim, &terrain, seed);
+    let seed = common::Rng::source_seed(cfg.run.seed, part.source);
+    let fleet = Fleet::new(&cfg.sim, &terrain, seed);
     let mut inbox = Inbox::connect(&bus, seed, !cfg.sim.mean_actions)?;
-    let mut switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n)
+    let switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n)
         .with_leave_dwell(&cfg.sim.leave_dwell);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
+    if !first_policy(&mut inbox, &stop_requested)? {
+        return Ok(());
+    }
+    tracing::info!(learners = ?inbox.learners(), "first policy received");
+    let driver = Driver::new(&fleet, seed);
+    let chunk = Vec::with_capacity(t_steps * n + n);
+    let env_steps = starting_steps(&inbox, part.resume);
+    let started = Instant::now();
+    let mut sim = Stepping {
+        cfg,
+        source: part.source,
+        envs: n,
+        rollout_steps: t_steps,
+        fleet,
+        driver,
+        inbox,
+        switcher,
+        outputs,
+        rollout_tx,
+        chunk,
+        env_steps,
+        chunk_id: 0,
+        started,
+        looked: started,
+    };
+    sim.run(&stop_requested)?;
+    sim.finish()
+}
+
+/// Waits until the inbox holds a first policy; false when the run asked to stop first.
+fn first_policy(inbox: &mut Inbox, stop_requested: &dyn Fn() -> bool) -> anyhow::Result<bool> {
     let mut nag = Nag::new(Duration::from_secs(10));
     while inbox.take()?.is_empty() {
-        if bus.stop_requested(&control) {
-            return Ok(());
+        if stop_requested() {
+            return Ok(false);
         }
         inbox.wait(PolicySlot::General, POLL)?;
         if let Some(secs) = nag.due() {
             tracing::warn!(secs, "still no policy");
         }
     }
-    tracing::info!(learners = ?inbox.learners(), "first policy received");
+    Ok(true)
+}
 
-    let mut driver = Driver::new(&fleet, seed);
-    let mut chunk = Vec::with_capacity(t_steps * n + n);
-    // Resumed, the run goes on from the steps its learners' checkpoints had learned from
-    // (what the sim stepped after them is collected again); chunk ids start over, as they
-    // do for any learner that joins.
-    let mut env_steps = if resume { inbox.env_steps() } else { 0 };
+/// The env steps the run starts counting from. Resumed, the run goes on from the steps its
+/// learners' checkpoints had learned from (what the sim stepped after them is collected
+/// again); chunk ids start over, as they do for any learner that joins.
+fn starting_steps(inbox: &Inbox, resume: bool) -> u64 {
+    let env_steps = if resume { inbox.env_steps() } else { 0 };
     if resume {
         tracing::info!(
             env_steps,
             "resumed: counting on from the learners' checkpoints"
         );
     }
-    let mut chunk_id = 0u64;
-    let started = Instant::now();
-    let mut looked = started;
-    'run: while env_steps < cfg.run.total_steps {
-        chunk.clear();
-        for _ in 0..t_steps {
-            let wanted = switcher.update(&outputs.classes);
-            let policies = inbox.policies.as_ref().context("no policy")?;
-            driver.tick(&mut fleet, policies, wanted, &outputs.classes, &mut chunk);
-            env_steps += n as u64;
-            outputs.publish(&fleet, &driver, env_steps, inbox.version())?;
-            if looked.elapsed() >= LOOK_EVERY {
-                looked = Instant::now();
-                if bus.stop_requested(&control) {
-                    break 'run;
+    env_steps
+}
+
+/// The sim acting with its learners' policies: its envs, the policies, what it publishes,
+/// and how far the run has come.
+struct Stepping<'a> {
+    cfg: &'a Config,
+    source: u32,
+    envs: usize,
+    rollout_steps: usize,
+    fleet: Fleet,
+    driver: Driver,
+    inbox: Inbox,
+    switcher: Switcher,
+    outputs: TickOutputs,
+    rollout_tx: Sender<Transition, RolloutHeader>,
+    /// The rollout chunk being filled.
+    chunk: Vec<Transition>,
+    env_steps: u64,
+    chunk_id: u64,
+    started: Instant,
+    /// When the stepping loop last looked for a shutdown and new policies.
+    looked: Instant,
+}
+
+impl Stepping<'_> {
+    /// Steps, sends and (in sync mode) waits for the answers to rollout chunks until
+    /// `run.total-steps` or a shutdown request.
+    fn run(&mut self, stop_requested: &dyn Fn() -> bool) -> anyhow::Result<()> {
+        let total_steps = self.cfg.run.total_steps;
+        while self.env_steps < total_steps {
+            if !self.fill_chunk(stop_requested)? {
+                return Ok(());
+            }
+            self.send_chunk()?;
+            if self.cfg.run.mode == LearnMode::Sync
+                && self.env_steps < total_steps
+                && !self.wait_for_answers(stop_requested)?
+            {
+                return Ok(());
+            }
+        }
+        Ok(())
+    }
+
+    /// Steps every env for one chunk's ticks, publishing each tick; false when the run asked
+    /// to stop.
+    fn fill_chunk(&mut self, stop_requested: &dyn Fn() -> bool) -> anyhow::Result<bool> {
+        self.chunk.clear();
+        for _ in 0..self.rollout_steps {
+            let wanted = self.switcher.update(&self.outputs.classes);
+            let policies = self.inbox.policies.as_ref().context("no policy")?;
+            self.driver.tick(
+                &mut self.fleet,
+                policies,
+                wanted,
+                &self.outputs.classes,
+                &mut self.chunk,
+            );
+            self.env_steps += self.envs as u64;
+            self.outputs.publish(
+                &self.fleet,
+                &self.driver,
+                self.env_steps,
+                self.inbox.version(),
+            )?;
+            if self.looked.elapsed() >= LOOK_EVERY {
+                self.looked = Instant::now();
+                if stop_requested() {
+                    return Ok(false);
                 }
-                if cfg.run.mode == LearnMode::Async {
-                    inbox.take()?;
+                if self.cfg.run.mode == LearnMode::Async {
+                    self.inbox.take()?;
                 }
             }
         }
-        driver.bootstrap(&mut chunk);
+        Ok(true)
+    }
+
+    /// Sends the filled chunk on `rollout` with its bootstrap observations.
+    fn send_chunk(&mut self) -> anyhow::Result<()> {
+        self.driver.bootstrap(&mut self.chunk);
         let header = RolloutHeader {
-            chunk: chunk_id,
-            env_steps,
-            steps: t_steps as u32,
-            envs: n as u32,
-            source: args.source,
+            chunk: self.chunk_id,
+            env_steps: self.env_steps,
+            steps: self.rollout_steps as u32,
+            envs: self.envs as u32,
+            source: self.source,
             _reserved: 0,
         };
-        rollout_tx.send(header, &chunk)?;
-        outputs.flush()?;
-        chunk_id += 1;
+        self.rollout_tx.send(header, &self.chunk)?;
+        self.outputs.flush()?;
+        self.chunk_id += 1;
         tracing::debug!(
-            chunk = chunk_id,
-            env_steps,
-            sps = env_steps as f64 / started.elapsed().as_secs_f64(),
+            chunk = self.chunk_id,
+            env_steps = self.env_steps,
+            sps = self.env_steps as f64 / self.started.elapsed().as_secs_f64(),
             "rollout sent"
         );
-        if cfg.run.mode == LearnMode::Sync && env_steps < cfg.run.total_steps {
-            // DESIGN §3: on-policy PPO; wait until every learner answered this chunk.
-            let mut nag = Nag::new(Duration::from_secs(30));
-            let mut pending = inbox.learners();
-            loop {
-                for (slot, h) in inbox.take()? {
-                    pending.retain(|(s, learner)| *s != slot || !answers(&h, chunk_id, *learner));
-                }
-                let Some(&(slot, _)) = pending.first() else {
-                    break;
-                };
-                if bus.stop_requested(&control) {
-                    break 'run;
-                }
-                inbox.wait(slot, POLL)?;
-                if let Some(secs) = nag.due() {
-                    tracing::warn!(
-                        secs,
-                        slot = slot.name(),
-                        "sync mode: still waiting for the learner"
-                    );
-                }
+        Ok(())
+    }
+
+    /// Sync mode (DESIGN §3: on-policy PPO): waits until every learner answered the chunks
+    /// sent; false when the run asked to stop.
+    fn wait_for_answers(&mut self, stop_requested: &dyn Fn() -> bool) -> anyhow::Result<bool> {
+        let mut nag = Nag::new(Duration::from_secs(30));
+        let mut pending = self.inbox.learners();
+        loop {
+            for (slot, h) in self.inbox.take()? {
+                pending.retain(|(s, learner)| *s != slot || !answers(&h, self.chunk_id, *learner));
+            }
+            let Some(&(slot, _)) = pending.first() else {
+                return Ok(true);
+            };
+            if stop_requested() {
+                return Ok(false);
+            }
+            self.inbox.wait(slot, POLL)?;
+            if let Some(secs) = nag.due() {
+                tracing::warn!(
+                    secs,
+                    slot = slot.name(),
+                    "sync mode: still waiting for the learner"
+                );
             }
         }
     }
-    outputs.finish()?;
-    let secs = started.elapsed().as_secs_f64();
-    tracing::info!(
-        env_steps,
-        episodes = driver.episodes.episodes,
-        successes = driver.episodes.successes,
-        policy_version = inbox.version(),
-        env_steps_per_s = env_steps as f64 / secs,
-        refused = %inbox.refused.summary(),
-        "sim done"
-    );
-    Ok(())
+
+    /// Flushes the outputs and logs the run's closing line.
+    fn finish(mut self) -> anyhow::Result<()> {
+        self.outputs.finish()?;
+        let secs = self.started.elapsed().as_secs_f64();
+        tracing::info!(
+            env_steps = self.env_steps,
+            episodes = self.driver.episodes.episodes,
+            successes = self.driver.episodes.successes,
+            policy_version = self.inbox.version(),
+            env_steps_per_s = self.env_steps as f64 / secs,
+            refused = %self.inbox.refused.summary(),
+            "sim done"
+        );
+        Ok(())
+    }
 }
 
 #[cfg(test)]
