@@ -286,6 +286,27 @@ impl CurvesFigure {
     }
 }
 
+/// Where the learner writes besides its policies: checkpoints, the metrics CSV and the
+/// learning-curves figure.
+struct RunFiles {
+    ckpt_dir: PathBuf,
+    log: MetricsLog,
+    figure: CurvesFigure,
+}
+
+impl RunFiles {
+    /// Opens the metrics CSV in `out`; checkpoints go to `ckpt_dir`.
+    fn open(out: &Path, ckpt_dir: PathBuf) -> Result<Self, LearnerError> {
+        Ok(Self {
+            ckpt_dir,
+            log: MetricsLog::open(out)?,
+            figure: CurvesFigure::new(out),
+        })
+    }
+}
+
+/// Runs the learner in the run `args` names until each of its sims has sent its last chunk
+/// or the run asks it to stop.
 pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
     let cfg = Config::load(&args.join.config)?;
     let ckpt_dir = args.out.join(run_dir::CHECKPOINTS);
@@ -303,160 +324,225 @@ pub fn serve(args: &ServeArgs) -> Result<(), LearnerError> {
         threads = learner.update_threads(),
         "learner {from}"
     );
-    let mut log = MetricsLog::open(&args.out)?;
-    let mut figure = CurvesFigure::new(&args.out);
+    let files = RunFiles::open(&args.out, ckpt_dir)?;
     learner.play(args.slot);
     let bus = Bus::connect(&args.join.run_id, args.slot.learner_name())?;
     let control = bus.control_listener()?;
     let rollout_rx = bus.receiver::<Transition, RolloutHeader>(&ipc::ROLLOUT, None)?;
-    let policy_tx = bus.sender::<f32, PolicyHeader>(
-        &ipc::POLICY,
-        Some(args.slot.name()),
-        learner.layout().len(),
-    )?;
-    publish(&policy_tx, &learner, args.slot, cfg.ppo.obs_clip, 0, 0)?;
-    tracing::info!(
-        version = learner.policy_version(),
-        params = learner.layout().len(),
-        "policy published"
-    );
-
-    let mut sources = BTreeMap::<u32, Source>::new();
-    let mut rounds = (cfg.run.mode == LearnMode::Sync && args.sources > 1).then(Round::default);
-    let mut lags = LagHistogram::default();
-    // Every consumed chunk is answered with a policy, so a sync-mode sim never waits in vain.
-    let answer = |learner: &Learner, chunks_seen: u64, writes: &Writes| {
-        publish(
-            &policy_tx,
-            learner,
-            args.slot,
-            cfg.ppo.obs_clip,
-            chunks_seen,
-            writes.failures(),
-        )
-    };
-    let mut writes = Writes::default();
-    let mut refused = Refusals::new("rollout chunk");
-    let mut done = false;
-    while !done && !bus.stop_requested(&control) {
-        policy_tx.update_connections()?;
+    let mut trainer = Trainer::publish_first(&bus, args, &cfg, learner, files)?;
+    while !trainer.done && !bus.stop_requested(&control) {
+        trainer.policy_tx.update_connections()?;
         rollout_rx.wait(Duration::from_millis(100))?;
         while let Some(sample) = rollout_rx.try_recv()? {
-            let h = *sample.user_header();
-            let (t, n) = (h.steps as usize, h.envs as usize);
-            let data = sample.payload();
-            // DESIGN §2: a bad chunk is dropped and counted; it never reaches PPO, and it is
-            // not answered (its chunk id may be anything).
-            if let Some(kind) = rollout::chunk_refusal(&h, data) {
-                refused.refuse(
-                    kind,
-                    &format!("chunk {}: {} × {} + {} of {}", h.chunk, t, n, n, data.len()),
-                );
-                continue;
-            }
-            let source = sources.entry(h.source).or_default();
-            source.receive(&h);
-            // Each sim steps `run.total-steps`; the learner is done once each of its sims
-            // has sent its last chunk.
-            done = sources.len() >= args.sources as usize
-                && sources.values().all(|s| s.env_steps >= cfg.run.total_steps);
-            if args.frozen {
-                answer(&learner, h.chunk + 1, &writes)?;
-                continue;
-            }
-            let (transitions, boot) = data.split_at(t * n);
-            let bootstrap_obs: Vec<[f32; OBS_DIM]> = boot.iter().map(|b| b.obs).collect();
-            let episodes = sources
-                .entry(h.source)
-                .or_default()
-                .episodes
-                .feed(transitions);
-            lags.add(learner.policy_version(), transitions);
-            // Sync mode across several sims: one update per round of their chunks.
-            let merged = match rounds.as_mut() {
-                None => None,
-                Some(round) => {
-                    round.add(
-                        h.source,
-                        h.chunk,
-                        t,
-                        transitions.to_vec(),
-                        bootstrap_obs.clone(),
-                        episodes.clone(),
-                    );
-                    let Some(m) = round.complete(args.sources as usize) else {
-                        continue;
-                    };
-                    Some(m)
-                }
-            };
-            let chunks_seen = merged.as_ref().map_or(h.chunk + 1, |m| m.chunks_seen);
-            let updated = learner.update(&match &merged {
-                None => Rollout {
-                    transitions,
-                    bootstrap_obs: &bootstrap_obs,
-                    episodes: &episodes,
-                },
-                Some(m) => Rollout {
-                    transitions: &m.transitions,
-                    bootstrap_obs: &m.bootstrap_obs,
-                    episodes: &m.episodes,
-                },
-            });
-            let mut m = match updated {
-                Ok(m) => m,
-                // One bad chunk (all stale, non-finite loss) is skipped, not fatal; the
-                // policy is published anyway so a waiting sync-mode sim goes on.
-                Err(e @ (LearnerError::Rollout { .. } | LearnerError::NonFinite { .. })) => {
-                    tracing::warn!(chunk = h.chunk, error = %e, "chunk not trained on");
-                    answer(&learner, chunks_seen, &writes)?;
-                    continue;
-                }
-                Err(e) => return Err(e),
-            };
-            m.chunks_by_source = sources
-                .iter()
-                .map(|(id, s)| format!("{id}:{}", s.chunks))
-                .collect::<Vec<_>>()
-                .join(" ");
-            writes.attempt("metrics", log.append(&m));
-            // Checkpoint before publishing: every published version can be resumed, so a
-            // learner restarted after kill -9 continues the version sequence.
-            if learner.checkpoint_due() {
-                writes.attempt("checkpoint", learner.save_checkpoint(&ckpt_dir));
-            }
-            answer(&learner, chunks_seen, &writes)?;
-            if learner.checkpoint_due() {
-                figure.redraw(log.path(), false);
-            }
-            let c = learner.counters();
-            tracing::info!(
-                update = c.update,
-                version = m.policy_version,
-                env_steps = h.env_steps,
-                success = m.success_rate.map_or(-1.0, |s| s),
-                ret = m.mean_episode_return.map_or(0.0, |r| r),
-                kl = m.approx_kl,
-                sps = m.samples_per_second as u64,
-                "update"
-            );
+            trainer.take(*sample.user_header(), sample.payload())?;
         }
     }
-    if !args.frozen {
-        writes.attempt("checkpoint", learner.save_checkpoint(&ckpt_dir));
-    }
-    figure.redraw(log.path(), true);
-    tracing::info!(
-        updates = learner.counters().update,
-        version = learner.policy_version(),
-        chunks_missed = sources.values().map(|s| s.missed).sum::<u64>(),
-        sources = %sources_summary(&sources),
-        write_failures = writes.failures(),
-        refused = %refused.summary(),
-        "learner done; policy lag of the transitions received (versions: share): {}",
-        lags.summary()
-    );
+    trainer.finish();
     Ok(())
+}
+
+/// The learner at work: its policy service, its files and what it has counted of the
+/// rollout chunks so far.
+struct Trainer<'a> {
+    args: &'a ServeArgs,
+    cfg: &'a Config,
+    learner: Learner,
+    files: RunFiles,
+    policy_tx: Sender<f32, PolicyHeader>,
+    sources: BTreeMap<u32, Source>,
+    /// Sync mode across several sims: the round of their chunks in progress.
+    rounds: Option<Round>,
+    lags: LagHistogram,
+    writes: Writes,
+    refused: Refusals,
+    /// Every sim has sent the chunk that completes its `run.total-steps`.
+    done: bool,
+}
+
+impl<'a> Trainer<'a> {
+    /// Opens the policy service of `args.slot` on `bus` and publishes the starting policy.
+    fn publish_first(
+        bus: &Bus,
+        args: &'a ServeArgs,
+        cfg: &'a Config,
+        learner: Learner,
+        files: RunFiles,
+    ) -> Result<Self, LearnerError> {
+        let policy_tx = bus.sender::<f32, PolicyHeader>(
+            &ipc::POLICY,
+            Some(args.slot.name()),
+            learner.layout().len(),
+        )?;
+        publish(&policy_tx, &learner, args.slot, cfg.ppo.obs_clip, 0, 0)?;
+        tracing::info!(
+            version = learner.policy_version(),
+            params = learner.layout().len(),
+            "policy published"
+        );
+        Ok(Self {
+            args,
+            cfg,
+            learner,
+            files,
+            policy_tx,
+            sources: BTreeMap::new(),
+            rounds: (cfg.run.mode == LearnMode::Sync && args.sources > 1).then(Round::default),
+            lags: LagHistogram::default(),
+            writes: Writes::default(),
+            refused: Refusals::new("rollout chunk"),
+            done: false,
+        })
+    }
+
+    /// Publishes the current policy. Every consumed chunk is answered with a policy, so a
+    /// sync-mode sim never waits in vain.
+    fn answer(&self, chunks_seen: u64) -> Result<(), LearnerError> {
+        publish(
+            &self.policy_tx,
+            &self.learner,
+            self.args.slot,
+            self.cfg.ppo.obs_clip,
+            chunks_seen,
+            self.writes.failures(),
+        )
+    }
+
+    /// Takes one rollout chunk (`h`, `data`): drops a bad one, counts it, and trains on it
+    /// (or on the round it completes) unless the learner is frozen.
+    fn take(&mut self, h: RolloutHeader, data: &[Transition]) -> Result<(), LearnerError> {
+        let (t, n) = (h.steps as usize, h.envs as usize);
+        // DESIGN §2: a bad chunk is dropped and counted; it never reaches PPO, and it is
+        // not answered (its chunk id may be anything).
+        if let Some(kind) = rollout::chunk_refusal(&h, data) {
+            self.refused.refuse(
+                kind,
+                &format!("chunk {}: {} × {} + {} of {}", h.chunk, t, n, n, data.len()),
+            );
+            return Ok(());
+        }
+        let source = self.sources.entry(h.source).or_default();
+        source.receive(&h);
+        // Each sim steps `run.total-steps`; the learner is done once each of its sims
+        // has sent its last chunk.
+        self.done = self.sources.len() >= self.args.sources as usize
+            && self
+                .sources
+                .values()
+                .all(|s| s.env_steps >= self.cfg.run.total_steps);
+        if self.args.frozen {
+            return self.answer(h.chunk + 1);
+        }
+        let (transitions, boot) = data.split_at(t * n);
+        let bootstrap_obs: Vec<[f32; OBS_DIM]> = boot.iter().map(|b| b.obs).collect();
+        let episodes = self
+            .sources
+            .entry(h.source)
+            .or_default()
+            .episodes
+            .feed(transitions);
+        self.lags.add(self.learner.policy_version(), transitions);
+        // Sync mode across several sims: one update per round of their chunks.
+        let merged = match self.rounds.as_mut() {
+            None => None,
+            Some(round) => {
+                round.add(
+                    h.source,
+                    h.chunk,
+                    t,
+                    transitions.to_vec(),
+                    bootstrap_obs.clone(),
+                    episodes.clone(),
+                );
+                let Some(m) = round.complete(self.args.sources as usize) else {
+                    return Ok(());
+                };
+                Some(m)
+            }
+        };
+        let chunks_seen = merged.as_ref().map_or(h.chunk + 1, |m| m.chunks_seen);
+        let rollout = match &merged {
+            None => Rollout {
+                transitions,
+                bootstrap_obs: &bootstrap_obs,
+                episodes: &episodes,
+            },
+            Some(m) => Rollout {
+                transitions: &m.transitions,
+                bootstrap_obs: &m.bootstrap_obs,
+                episodes: &m.episodes,
+            },
+        };
+        self.train(&h, &rollout, chunks_seen)
+    }
+
+    /// One PPO update on `rollout`, then its metrics row, a checkpoint when due, the new
+    /// policy (answering `chunks_seen` chunks) and a log line.
+    fn train(
+        &mut self,
+        h: &RolloutHeader,
+        rollout: &Rollout,
+        chunks_seen: u64,
+    ) -> Result<(), LearnerError> {
+        let mut m = match self.learner.update(rollout) {
+            Ok(m) => m,
+            // One bad chunk (all stale, non-finite loss) is skipped, not fatal; the
+            // policy is published anyway so a waiting sync-mode sim goes on.
+            Err(e @ (LearnerError::Rollout { .. } | LearnerError::NonFinite { .. })) => {
+                tracing::warn!(chunk = h.chunk, error = %e, "chunk not trained on");
+                return self.answer(chunks_seen);
+            }
+            Err(e) => return Err(e),
+        };
+        m.chunks_by_source = self
+            .sources
+            .iter()
+            .map(|(id, s)| format!("{id}:{}", s.chunks))
+            .collect::<Vec<_>>()
+            .join(" ");
+        self.writes.attempt("metrics", self.files.log.append(&m));
+        // Checkpoint before publishing: every published version can be resumed, so a
+        // learner restarted after kill -9 continues the version sequence.
+        if self.learner.checkpoint_due() {
+            let saved = self.learner.save_checkpoint(&self.files.ckpt_dir);
+            self.writes.attempt("checkpoint", saved);
+        }
+        self.answer(chunks_seen)?;
+        if self.learner.checkpoint_due() {
+            self.files.figure.redraw(self.files.log.path(), false);
+        }
+        let c = self.learner.counters();
+        tracing::info!(
+            update = c.update,
+            version = m.policy_version,
+            env_steps = h.env_steps,
+            success = m.success_rate.map_or(-1.0, |s| s),
+            ret = m.mean_episode_return.map_or(0.0, |r| r),
+            kl = m.approx_kl,
+            sps = m.samples_per_second as u64,
+            "update"
+        );
+        Ok(())
+    }
+
+    /// The last checkpoint (unless frozen), the final learning curves and the closing log
+    /// line.
+    fn finish(mut self) {
+        if !self.args.frozen {
+            let saved = self.learner.save_checkpoint(&self.files.ckpt_dir);
+            self.writes.attempt("checkpoint", saved);
+        }
+        self.files.figure.redraw(self.files.log.path(), true);
+        tracing::info!(
+            updates = self.learner.counters().update,
+            version = self.learner.policy_version(),
+            chunks_missed = self.sources.values().map(|s| s.missed).sum::<u64>(),
+            sources = %sources_summary(&self.sources),
+            write_failures = self.writes.failures(),
+            refused = %self.refused.summary(),
+            "learner done; policy lag of the transitions received (versions: share): {}",
+            self.lags.summary()
+        );
+    }
 }
 
 #[cfg(test)]
