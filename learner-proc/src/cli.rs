@@ -6,11 +6,13 @@ pub mod inspect;
 pub mod plot;
 
 use std::ffi::OsString;
+use std::io::Write;
 use std::process::ExitCode;
 
+use crate::LearnerError;
 use clap::{Parser, Subcommand};
 
-/// lavatube learner: PPO in burn, checkpoints.
+/// lavatube learner: PPO (a fused engine, burn's autodiff as reference), checkpoints.
 #[derive(Debug, Parser)]
 #[command(name = "learner-proc", version)]
 pub struct Cli {
@@ -30,6 +32,16 @@ pub enum Command {
     Serve(crate::serve::ServeArgs),
 }
 
+/// Runs one command of the `learner-proc` binary, writing its report to `out`.
+pub fn run(command: &Command, out: &mut dyn Write) -> Result<(), LearnerError> {
+    match command {
+        Command::Inspect(args) => inspect::inspect(args, out),
+        Command::Export(args) => export::export(args, out),
+        Command::Plot(args) => plot::plot(args, out),
+        Command::Serve(args) => crate::serve::serve(args),
+    }
+}
+
 /// Tunes the allocator, parses `args`, initialises logging (stderr, `RUST_LOG`), runs the
 /// command and maps the outcome to an exit code.
 pub fn main(args: impl IntoIterator<Item = OsString>) -> ExitCode {
@@ -39,7 +51,7 @@ pub fn main(args: impl IntoIterator<Item = OsString>) -> ExitCode {
         Err(code) => return code,
     };
     common::logging::init();
-    match crate::run(&cli.command, &mut std::io::stdout().lock()) {
+    match run(&cli.command, &mut std::io::stdout().lock()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("learner-proc: {e}");

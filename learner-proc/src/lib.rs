@@ -36,10 +36,8 @@ pub mod serve;
 mod simd;
 mod writes;
 
-use std::io::Write;
-
 pub use checkpoint::Checkpoint;
-pub use cli::Command;
+pub use cli::{Command, run};
 pub use error::LearnerError;
 pub use metrics::{EpisodeOutcome, MetricsLog, UpdateMetrics};
 pub use ppo::{Counters, Learner, Rollout, SampledAction};
@@ -58,15 +56,5 @@ pub fn tune_allocator() {
     unsafe {
         libc::mallopt(libc::M_MMAP_THRESHOLD, 32 << 20);
         libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
-    }
-}
-
-/// Runs one command of the `learner-proc` binary, writing its report to `out`.
-pub fn run(command: &Command, out: &mut dyn Write) -> Result<(), LearnerError> {
-    match command {
-        Command::Inspect(args) => cli::inspect::inspect(args, out),
-        Command::Export(args) => cli::export::export(args, out),
-        Command::Plot(args) => cli::plot::plot(args, out),
-        Command::Serve(args) => serve::serve(args),
     }
 }
