@@ -1,12 +1,12 @@
-//! What a run shows the person who started it: the progress bar's message, which of the
-//! children's log lines reach the terminal, and a summary line every `run.summary-every` env
-//! steps in the way ML-Agents and Stable-Baselines3 users know.
+//! What a run shows the person who started it: lines above the progress bar, the bar's
+//! message, which of the children's log lines reach the terminal, and a summary line every
+//! `run.summary-every` env steps in the way ML-Agents and Stable-Baselines3 users know.
 //!
 //! The children's routine lines stay in their log files; warnings, errors and anything that
 //! is not a log line (a panic) are shown. `--verbose` shows every line.
 
+use super::Progress;
 use super::numbers::thousands;
-use super::{Progress, say};
 use common::config::PolicySlot;
 use common::run_dir;
 use indicatif::ProgressBar;
@@ -15,6 +15,16 @@ use std::collections::VecDeque;
 use std::io::{Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+/// Prints a line above the progress bar, or to stderr when the bar is hidden (not a terminal,
+/// `--quiet`), where indicatif would drop it.
+pub fn say(bar: &ProgressBar, line: String) {
+    if bar.is_hidden() {
+        eprintln!("{line}");
+    } else {
+        bar.println(line);
+    }
+}
 
 /// Which of a child's log lines are shown above the progress bar.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -20,7 +20,7 @@ mod sweep;
 
 pub use bins::{Binaries, locate};
 pub use child::{Child, Output, Usage};
-pub use console::Lines;
+pub use console::{Lines, say};
 pub use host::Host;
 pub use numbers::thousands;
 pub use role::Role;
@@ -28,15 +28,3 @@ pub use run::{Finished, LAUNCHER_NODE, ResumedConfig, Run};
 pub use summary::{MeanStd, Progress, Summary};
 pub use supervisor::{Event, Spec, Supervised};
 pub use sweep::{report_sweep, sweep_dead_runs};
-
-use indicatif::ProgressBar;
-
-/// Prints a line above the progress bar, or to stderr when the bar is hidden (not a terminal,
-/// `--quiet`), where indicatif would drop it.
-pub fn say(bar: &ProgressBar, line: String) {
-    if bar.is_hidden() {
-        eprintln!("{line}");
-    } else {
-        bar.println(line);
-    }
-}
