@@ -6,7 +6,7 @@
 
 use crate::frame::{self, Key, Kind};
 use crate::link::{self, Net, zerr};
-use crate::{Counts, Stop};
+use crate::directions::{Counts, Stop, both_directions};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, Sender};
 use common::refusals::Refusals;
@@ -37,7 +37,7 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
         .copied()
         .collect();
     let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
-    crate::both_directions(
+    both_directions(
         "policies",
         move |stop| forward_policies(&run, &slots, &net2, &key2, stop),
         |stop| receive_rollouts(cfg, run_id, &net, &key, stop),

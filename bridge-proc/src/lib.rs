@@ -17,68 +17,15 @@
 //! - Per-tick telemetry and terrain estimates never leave their host.
 
 pub mod cli;
+mod directions;
 pub mod frame;
 pub mod learner_side;
 pub mod link;
 pub mod sim_side;
 
+pub use directions::{Counts, Stop};
+
 use std::process::ExitCode;
-use std::sync::Arc;
-use std::sync::atomic::{AtomicBool, Ordering};
-
-/// Frames and bytes through one direction of a bridge.
-#[derive(Debug, Default, Clone, Copy)]
-pub struct Counts {
-    pub frames: u64,
-    pub bytes: u64,
-}
-
-impl Counts {
-    fn add(&mut self, bytes: usize) {
-        self.frames += 1;
-        self.bytes += bytes as u64;
-    }
-}
-
-/// Set when either of a bridge's two threads ends, so the other ends too.
-#[derive(Debug, Default, Clone)]
-pub struct Stop(Arc<AtomicBool>);
-
-impl Stop {
-    fn set(&self) {
-        self.0.store(true, Ordering::Relaxed);
-    }
-
-    fn is_set(&self) -> bool {
-        self.0.load(Ordering::Relaxed)
-    }
-}
-
-/// Runs `beside` on a thread named `name` and `here` on this one, each until it ends or the
-/// other has ended (a bridge's two directions); fails if either failed.
-fn both_directions(
-    name: &str,
-    beside: impl FnOnce(&Stop) -> anyhow::Result<()> + Send + 'static,
-    here: impl FnOnce(&Stop) -> anyhow::Result<()>,
-) -> anyhow::Result<()> {
-    let stop = Stop::default();
-    let thread = {
-        let stop = stop.clone();
-        std::thread::Builder::new()
-            .name(name.into())
-            .spawn(move || {
-                let r = beside(&stop);
-                stop.set();
-                r
-            })?
-    };
-    let r = here(&stop);
-    stop.set();
-    let other = thread
-        .join()
-        .map_err(|_| anyhow::anyhow!("the {name} thread panicked"))?;
-    r.and(other)
-}
 
 /// Parses `args`, runs, prints any error on one line and maps it to the exit code: 0 ok,
 /// 1 a user or config error, 2 anything else.

@@ -6,9 +6,9 @@
 //! sim's last chunk (`run.total-steps`) is out, the bridge closes its Zenoh connection,
 //! which sends what is still queued, and exits.
 
+use crate::directions::{Counts, Stop, both_directions};
 use crate::frame::{self, Key, Kind};
 use crate::link::{self, Net, zerr};
-use crate::{Counts, Stop};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
 use common::refusals::Refusals;
@@ -33,7 +33,7 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
     tracing::info!(endpoint, source, "sim host bridge up");
     let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
     let total = cfg.run.total_steps;
-    let ran = crate::both_directions(
+    let ran = both_directions(
         "rollouts",
         move |stop| forward_rollouts(&run, &net2, &key2, (source, total), stop),
         |stop| receive_policies(cfg, run_id, &net, &key, stop),
