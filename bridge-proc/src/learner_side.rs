@@ -4,9 +4,9 @@
 //! as they join and leave (Zenoh liveliness) and what each sent, and publishes that table
 //! every second on the local `hosts` service for `lavatube status`.
 
+use crate::directions::{Counts, Stop, both_directions};
 use crate::frame::{self, Key, Kind};
 use crate::link::{self, Net, zerr};
-use crate::directions::{Counts, Stop, both_directions};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, Sender};
 use common::refusals::Refusals;
@@ -184,6 +184,8 @@ fn publish_hosts(
     Ok(())
 }
 
+/// Republishes the sim hosts' rollout chunks on the local `rollout` service until the run
+/// stops this process or the other direction ends.
 fn receive_rollouts(
     cfg: &Config,
     run_id: &str,
@@ -199,32 +201,21 @@ fn receive_rollouts(
     let hosts_tx = bus.sender::<SimHost, HostsHeader>(&ipc::HOSTS, None, MAX_HOSTS)?;
     let chunks = link::subscribe(net, link::ROLLOUT_ALL, 64)?;
     let sims = link::watch_tokens(net, link::SIM_ALL, 16)?;
-    let mut hosts: BTreeMap<u32, Host> = BTreeMap::new();
-    let mut refused = Refusals::new("rollout frame");
-    // One chunk's elements, decoded into the same memory every time.
-    let mut items: Vec<Transition> = Vec::with_capacity(max_len);
-    let (mut logged, mut published) = (Instant::now(), Instant::now());
+    let mut intake = Intake {
+        key,
+        max_len,
+        tx,
+        hosts_tx,
+        hosts: BTreeMap::new(),
+        refused: Refusals::new("rollout frame"),
+        items: Vec::with_capacity(max_len),
+        logged: Instant::now(),
+        published: Instant::now(),
+    };
     while !stop.is_set() && !bus.stop_requested(&control) {
-        hosts_tx.update_connections()?;
-        if logged.elapsed() >= LOG_EVERY {
-            log_hosts(&mut hosts, logged.elapsed().as_secs_f64());
-            logged = Instant::now();
-        }
-        if published.elapsed() >= PUBLISH_EVERY {
-            publish_hosts(&hosts_tx, &mut hosts, published.elapsed().as_secs_f64())?;
-            published = Instant::now();
-        }
+        intake.report_hosts()?;
         while let Some(s) = sims.try_recv().map_err(zerr("liveliness"))? {
-            let source = link::token_source(s.key_expr().as_str());
-            let joined = s.kind() == SampleKind::Put;
-            if joined {
-                tracing::info!(?source, "sim host joined");
-            } else {
-                tracing::warn!(?source, "sim host gone; training goes on with the others");
-            }
-            if let Some(source) = source {
-                hosts.entry(source).or_default().joined = joined;
-            }
+            intake.see_sim_host(s.key_expr().as_str(), s.kind() == SampleKind::Put);
         }
         let Some(sample) = chunks
             .recv_timeout(Duration::from_millis(50))
@@ -232,16 +223,75 @@ fn receive_rollouts(
         else {
             continue;
         };
-        let bytes = sample.payload().to_bytes();
-        let f = match frame::decode::<RolloutHeader, _>(key, Kind::Rollout, &bytes, &mut items) {
+        intake.take(&sample.payload().to_bytes())?;
+    }
+    intake.finish();
+    Ok(())
+}
+
+/// The rollout side of the learner host's bridge: where chunks go, and what each sim host
+/// has sent.
+struct Intake<'a> {
+    key: &'a Key,
+    /// The most transitions a chunk of this run holds.
+    max_len: usize,
+    tx: Sender<Transition, RolloutHeader>,
+    hosts_tx: Sender<SimHost, HostsHeader>,
+    hosts: BTreeMap<u32, Host>,
+    refused: Refusals,
+    /// One chunk's elements, decoded into the same memory every time.
+    items: Vec<Transition>,
+    logged: Instant,
+    published: Instant,
+}
+
+impl Intake<'_> {
+    /// Logs the sim hosts every [`LOG_EVERY`] and publishes their table every
+    /// [`PUBLISH_EVERY`].
+    fn report_hosts(&mut self) -> anyhow::Result<()> {
+        self.hosts_tx.update_connections()?;
+        if self.logged.elapsed() >= LOG_EVERY {
+            log_hosts(&mut self.hosts, self.logged.elapsed().as_secs_f64());
+            self.logged = Instant::now();
+        }
+        if self.published.elapsed() >= PUBLISH_EVERY {
+            let secs = self.published.elapsed().as_secs_f64();
+            publish_hosts(&self.hosts_tx, &mut self.hosts, secs)?;
+            self.published = Instant::now();
+        }
+        Ok(())
+    }
+
+    /// Notes a sim host's liveliness token `token` appearing (`joined`) or going away.
+    fn see_sim_host(&mut self, token: &str, joined: bool) {
+        let source = link::token_source(token);
+        if joined {
+            tracing::info!(?source, "sim host joined");
+        } else {
+            tracing::warn!(?source, "sim host gone; training goes on with the others");
+        }
+        if let Some(source) = source {
+            self.hosts.entry(source).or_default().joined = joined;
+        }
+    }
+
+    /// Takes one rollout frame: refuses it or republishes its chunk, and counts it in its
+    /// sim host's sequence.
+    fn take(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
+        let f = match frame::decode::<RolloutHeader, _>(
+            self.key,
+            Kind::Rollout,
+            bytes,
+            &mut self.items,
+        ) {
             Ok(f) => f,
             Err(r) => {
-                refused.refuse(r.kind, &r.detail);
-                continue;
+                self.refused.refuse(r.kind, &r.detail);
+                return Ok(());
             }
         };
         // An authenticated frame counts in its source's sequence, even if its chunk is refused.
-        let host = hosts.entry(f.source).or_default();
+        let host = self.hosts.entry(f.source).or_default();
         if f.seq > host.next_seq {
             host.lost += f.seq - host.next_seq;
             tracing::warn!(source = f.source, lost = host.lost, "rollout frames lost");
@@ -250,32 +300,36 @@ fn receive_rollouts(
         // DESIGN §2: what a sim host sends is checked as a local chunk would be.
         let refusal = if f.header.source != f.source {
             Some("source mismatch")
-        } else if items.len() > max_len {
+        } else if self.items.len() > self.max_len {
             Some("larger than the run's chunks")
         } else {
-            rollout::chunk_refusal(&f.header, &items)
+            rollout::chunk_refusal(&f.header, &self.items)
         };
         if let Some(kind) = refusal {
-            refused.refuse(
+            self.refused.refuse(
                 kind,
                 &format!("source {} chunk {}", f.source, f.header.chunk),
             );
-            continue;
+            return Ok(());
         }
         host.received.add(bytes.len());
         host.last_chunk = f.header.chunk;
         host.env_steps = f.header.env_steps;
-        tx.send(f.header, &items)?;
+        self.tx.send(f.header, &self.items)?;
+        Ok(())
     }
-    for (source, h) in &hosts {
-        tracing::info!(
-            source,
-            frames = h.received.frames,
-            bytes = h.received.bytes,
-            lost = h.lost,
-            "rollout frames received"
-        );
+
+    /// Logs what each sim host sent, and the frames refused.
+    fn finish(self) {
+        for (source, h) in &self.hosts {
+            tracing::info!(
+                source,
+                frames = h.received.frames,
+                bytes = h.received.bytes,
+                lost = h.lost,
+                "rollout frames received"
+            );
+        }
+        tracing::info!(refused = %self.refused.summary(), "learner host bridge done");
     }
-    tracing::info!(refused = %refused.summary(), "learner host bridge done");
-    Ok(())
 }
