@@ -62,6 +62,15 @@ pub fn create_dir(dir: &Path) -> Result<()> {
     })
 }
 
+/// Writes a report's text to stdout: the CLI's output to its user.
+#[allow(
+    clippy::print_stdout,
+    reason = "the CLI prints its results table to the user"
+)]
+pub fn print_output(text: &str) {
+    println!("{text}");
+}
+
 /// Pretty JSON of any report.
 pub fn to_json<T: Serialize>(report: &T) -> String {
     serde_json::to_string_pretty(report).unwrap_or_else(|e| format!("{{\"error\": \"{e}\"}}"))

@@ -1,10 +1,10 @@
 //! `estimator-proc analyze TRACES.csv --windows 10,20,40,70 --out DIR [--config F]`: the
 //! paper's offline experiment (SPEC S7) with its table and figures.
 
-use super::{InputArgs, print_output};
+use super::input::{InputArgs, Resolved};
 use crate::analysis::{self, DISTRIBUTION_WINDOW, HEATMAP_WINDOWS, Series, WindowResult};
 use crate::gmm::FitOptions;
-use crate::report::{AnalysisReport, SeriesCount, create_dir, to_json, write_file};
+use crate::report::{AnalysisReport, SeriesCount, create_dir, print_output, to_json, write_file};
 use crate::{EstimatorError, figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
@@ -30,7 +30,7 @@ pub const FIG_DISTRIBUTION: &str = "fig7_std_distribution_w100.png";
 pub const FIG_CONFUSION: &str = "fig8_confusion_w10_w70.png";
 
 pub fn execute(args: &AnalyzeArgs) -> anyhow::Result<()> {
-    let super::Resolved {
+    let Resolved {
         est: cfg,
         seed,
         min_step_travel: gate,

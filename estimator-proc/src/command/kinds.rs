@@ -9,12 +9,12 @@
 //! confusion matrices and, with two features or more, `fig_kinds_scatter_w<W>.png` the first
 //! two features' windows at the online window with the mixture's 2σ ellipses.
 
-use super::{InputArgs, print_output};
+use super::input::{InputArgs, Resolved};
 use crate::analysis;
 use crate::features::{self, FeatureWindows};
 use crate::kinds::{self, KindsResult};
 use crate::mixture::MixtureOptions;
-use crate::report::{create_dir, to_json, write_file};
+use crate::report::{create_dir, print_output, to_json, write_file};
 use crate::{figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
@@ -68,7 +68,7 @@ struct Ablation {
 }
 
 pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
-    let super::Resolved {
+    let Resolved {
         est: cfg,
         seed,
         min_step_travel: gate,

@@ -1,8 +1,8 @@
 //! `estimator-proc online TRACES.csv [--windows …] [--splice] [--hold N] [--out DIR]`: the online
 //! estimator replayed on a recording, per window size.
 
-use super::{InputArgs, print_output};
-use crate::report::{OnlineReport, create_dir, to_json, write_file};
+use super::input::{InputArgs, Resolved};
+use crate::report::{OnlineReport, create_dir, print_output, to_json, write_file};
 use crate::{analysis, evaluation, traces};
 use anyhow::Context as _;
 use std::path::PathBuf;
@@ -24,7 +24,7 @@ pub struct OnlineArgs {
 }
 
 pub fn execute(args: &OnlineArgs) -> anyhow::Result<()> {
-    let super::Resolved {
+    let Resolved {
         est: cfg,
         seed,
         min_step_travel,

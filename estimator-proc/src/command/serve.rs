@@ -86,7 +86,7 @@ impl Classifying {
 }
 
 pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
-    let cfg = super::load_config(Some(&args.config))?;
+    let cfg = super::input::load_config(Some(&args.config))?;
     let n = cfg.sim.num_envs();
     let bus = Bus::connect(&args.run_id, "estimator")?;
     let control = bus.control_listener()?;
