@@ -10,17 +10,17 @@
 //! two features' windows at the online window with the mixture's 2σ ellipses.
 
 use super::input::{InputArgs, Resolved};
-use crate::analysis;
-use crate::features::{self, FeatureWindows};
-use crate::kinds::{self, KindsResult};
+use crate::analysis::{self, Series};
+use crate::features::{self, FeatureWindows, Wheels};
+use crate::kinds::{self, KindsResult, StoredKinds};
 use crate::mixture::MixtureOptions;
 use crate::report::{create_dir, print_output, to_json, write_file};
 use crate::{figures, traces};
 use anyhow::Context as _;
 use common::AreaKind;
-use common::config::{KindsFit, WindowFeature};
+use common::config::{EstimatorConfig, KindsFit, WindowFeature};
 use serde::Serialize;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, clap::Args)]
 pub struct KindsArgs {
@@ -85,64 +85,25 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     let opts = MixtureOptions::from_config(&cfg, components, seed);
     let names: Vec<&'static str> = cfg.features.iter().map(|f| f.name()).collect();
     tracing::info!(rows = rows.len(), series = series.len(), kinds = kinds.len(), features = ?names, "telemetry read");
-    let fit = |windows: &FeatureWindows, w: usize, features: &[WindowFeature]| {
-        kinds::fit_and_name(
-            windows,
-            w,
-            features,
-            &kinds,
-            (&opts, cfg.kinds_fit),
-            cfg.unknown_beyond,
-        )
-        .with_context(|| format!("window {w}"))
+    let recording = Recording {
+        cfg: &cfg,
+        series: &series,
+        kinds: &kinds,
+        opts: &opts,
+        gate,
+        wheels,
     };
-    let mut results = Vec::new();
-    let mut ablation = Vec::new();
-    let mut scatter = None;
+    let mut scored = Scored::default();
     let stored = args.model.as_deref().map(kinds::read_stored).transpose()?;
     for named in stored.into_iter().flatten() {
-        let w = named.window;
-        let windows = features::window_features(&series, w, &named.features, gate, wheels)
-            .with_context(|| format!("window {w}"))?;
-        results.push(kinds::score_stored(named, &windows, cfg.unknown_beyond));
-        if w == cfg.online_window && windows.dim > 1 {
-            scatter = Some((windows, results.len() - 1));
+        recording.score_stored(named, &mut scored)?;
+    }
+    if args.model.is_none() {
+        for &w in &cfg.windows {
+            recording.fit_window(w, &names, &mut scored)?;
         }
     }
-    let windows_to_fit = if args.model.is_some() {
-        &[][..]
-    } else {
-        &cfg.windows[..]
-    };
-    for &w in windows_to_fit {
-        let windows = features::window_features(&series, w, &cfg.features, gate, wheels)
-            .with_context(|| format!("window {w}"))?;
-        results.push(fit(&windows, w, &cfg.features)?);
-        if w == cfg.online_window && names.len() > 1 {
-            for (i, &without) in names.iter().enumerate() {
-                let keep: Vec<usize> = (0..names.len()).filter(|&j| j != i).collect();
-                let kept: Vec<WindowFeature> = keep.iter().map(|&j| cfg.features[j]).collect();
-                let r = fit(&windows.select(&keep), w, &kept)?;
-                ablation.push(Ablation {
-                    window: w,
-                    without,
-                    macro_accuracy: r.macro_accuracy,
-                });
-            }
-            scatter = Some((windows, results.len() - 1));
-        }
-    }
-    create_dir(&args.out)?;
-    let mut figures = vec![FIG_CONFUSION.to_string()];
-    figures::kinds::draw_kinds_confusions(
-        &args.out.join(FIG_CONFUSION),
-        &results.iter().collect::<Vec<_>>(),
-    )?;
-    if let Some((windows, i)) = &scatter {
-        let name = format!("fig_kinds_scatter_w{}.png", results[*i].window);
-        figures::kinds::draw_feature_scatter(&args.out.join(&name), windows, &results[*i])?;
-        figures.push(name);
-    }
+    let figures = draw_figures(&args.out, &scored)?;
     let report = KindsReport {
         input: path.display().to_string(),
         model: args.model.as_ref().map(|m| m.display().to_string()),
@@ -151,8 +112,8 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
         covariance: cfg.covariance,
         kinds_fit: cfg.kinds_fit,
         unknown_beyond: cfg.unknown_beyond,
-        windows: results,
-        ablation,
+        windows: scored.results,
+        ablation: scored.ablation,
         figures,
     };
     let markdown = to_markdown(&report);
@@ -160,6 +121,110 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     write_file(&args.out.join("kinds.md"), &markdown)?;
     print_output(&markdown);
     Ok(())
+}
+
+/// What a `kinds` run scores: the recording's series, the kinds in them, and the settings
+/// to cut and fit their windows with.
+struct Recording<'a> {
+    cfg: &'a EstimatorConfig,
+    series: &'a [Series],
+    kinds: &'a [AreaKind],
+    opts: &'a MixtureOptions,
+    /// The stationary gate, metres per tick.
+    gate: f64,
+    wheels: Wheels,
+}
+
+/// The results so far: one per window size, the ablation, and the windows of the scatter
+/// figure with the index of their result.
+#[derive(Default)]
+struct Scored {
+    results: Vec<KindsResult>,
+    ablation: Vec<Ablation>,
+    scatter: Option<(FeatureWindows, usize)>,
+}
+
+impl Recording<'_> {
+    /// The recording's windows of `w` ticks on `features`.
+    fn windows(&self, w: usize, features: &[WindowFeature]) -> anyhow::Result<FeatureWindows> {
+        features::window_features(self.series, w, features, self.gate, self.wheels)
+            .with_context(|| format!("window {w}"))
+    }
+
+    /// The mixture over `features` fitted to `windows` (of `w` ticks), named by the labels.
+    fn fit(
+        &self,
+        windows: &FeatureWindows,
+        w: usize,
+        features: &[WindowFeature],
+    ) -> anyhow::Result<KindsResult> {
+        kinds::fit_and_name(
+            windows,
+            w,
+            features,
+            self.kinds,
+            (self.opts, self.cfg.kinds_fit),
+            self.cfg.unknown_beyond,
+        )
+        .with_context(|| format!("window {w}"))
+    }
+
+    /// Scores a stored, named classifier on the recording's windows of its size.
+    fn score_stored(&self, named: StoredKinds, scored: &mut Scored) -> anyhow::Result<()> {
+        let w = named.window;
+        let windows = self.windows(w, &named.features)?;
+        let result = kinds::score_stored(named, &windows, self.cfg.unknown_beyond);
+        scored.results.push(result);
+        if w == self.cfg.online_window && windows.dim > 1 {
+            scored.scatter = Some((windows, scored.results.len() - 1));
+        }
+        Ok(())
+    }
+
+    /// Fits and names the mixture on windows of `w` ticks; at the online window, also
+    /// without each of the features `names` in turn.
+    fn fit_window(
+        &self,
+        w: usize,
+        names: &[&'static str],
+        scored: &mut Scored,
+    ) -> anyhow::Result<()> {
+        let features = &self.cfg.features;
+        let windows = self.windows(w, features)?;
+        scored.results.push(self.fit(&windows, w, features)?);
+        if w == self.cfg.online_window && names.len() > 1 {
+            for (i, &without) in names.iter().enumerate() {
+                let keep: Vec<usize> = (0..names.len()).filter(|&j| j != i).collect();
+                let kept: Vec<WindowFeature> = keep.iter().map(|&j| features[j]).collect();
+                let r = self.fit(&windows.select(&keep), w, &kept)?;
+                scored.ablation.push(Ablation {
+                    window: w,
+                    without,
+                    macro_accuracy: r.macro_accuracy,
+                });
+            }
+            scored.scatter = Some((windows, scored.results.len() - 1));
+        }
+        Ok(())
+    }
+}
+
+/// Creates `out` and draws the confusion matrices and, when there is one, the scatter
+/// figure into it; returns the files' names.
+fn draw_figures(out: &Path, scored: &Scored) -> anyhow::Result<Vec<String>> {
+    create_dir(out)?;
+    let mut figures = vec![FIG_CONFUSION.to_string()];
+    figures::kinds::draw_kinds_confusions(
+        &out.join(FIG_CONFUSION),
+        &scored.results.iter().collect::<Vec<_>>(),
+    )?;
+    if let Some((windows, i)) = &scored.scatter {
+        let result = &scored.results[*i];
+        let name = format!("fig_kinds_scatter_w{}.png", result.window);
+        figures::kinds::draw_feature_scatter(&out.join(&name), windows, result)?;
+        figures.push(name);
+    }
+    Ok(figures)
 }
 
 fn pct(x: f64) -> String {
