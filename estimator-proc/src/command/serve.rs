@@ -85,6 +85,8 @@ impl Classifying {
     }
 }
 
+/// Classifies every env's terrain in the run `args` names and publishes the estimates until
+/// the run asks it to stop.
 pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let cfg = super::input::load_config(Some(&args.config))?;
     let n = cfg.sim.num_envs();
@@ -92,7 +94,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
     let control = bus.control_listener()?;
     let rx = bus.receiver::<EnvTick, TickHeader>(&ipc::TELEMETRY, None)?;
     let tx = bus.sender::<TerrainEstimate, TerrainHeader>(&ipc::TERRAIN, None, n)?;
-    let mut est = if cfg.estimator.kinds_model.is_some() {
+    let est = if cfg.estimator.kinds_model.is_some() {
         Classifying::Kinds(KindsEstimator::from_config(&cfg)?)
     } else {
         Classifying::Classes(
@@ -100,14 +102,20 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
                 .gate_stationary(cfg.min_step_travel()),
         )
     };
-    let mut out = vec![TerrainEstimate::default(); n];
-    let mut settling = Settling::new(cfg.estimator.settle_ticks, n);
-    let (mut scored, mut correct, mut ticks) = (0u64, 0u64, 0u64);
+    let mut serving = Serving {
+        est,
+        signal: cfg.estimator.signal,
+        out: vec![TerrainEstimate::default(); n],
+        settling: Settling::new(cfg.estimator.settle_ticks, n),
+        scored: 0,
+        correct: 0,
+        ticks: 0,
+    };
     tracing::info!(
         envs = n,
         window = cfg.estimator.online_window,
         signal = ?cfg.estimator.signal,
-        kinds = matches!(est, Classifying::Kinds(_)),
+        kinds = matches!(serving.est, Classifying::Kinds(_)),
         "estimator serving"
     );
     while !bus.stop_requested(&control) {
@@ -115,56 +123,88 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         rx.wait(Duration::from_millis(100))?;
         while let Some(sample) = rx.try_recv()? {
             let h = *sample.user_header();
-            for t in sample.payload().iter().filter(|t| (t.env as usize) < n) {
-                let env = t.env as usize;
-                let (starts, read) = settling.tick(env, t.events);
-                if starts {
-                    // A robot placed somewhere new starts a new series: its old window says
-                    // nothing about the ground it is on now.
-                    est.reset_env(env)?;
-                    out[env] = TerrainEstimate {
-                        env: t.env,
-                        class: wire::CLASS_UNKNOWN,
-                        ..TerrainEstimate::default()
-                    };
-                }
-                if !read {
-                    continue;
-                }
-                let e = match est.observe(t, cfg.estimator.signal) {
-                    Ok(e) => e,
-                    Err(err) => {
-                        tracing::warn!(env, error = %err, "observation skipped");
-                        continue;
-                    }
-                };
-                if let Some(right) = est.scores(e.class, t.area) {
-                    // Labels score the estimator; they never reach the fit.
-                    scored += 1;
-                    correct += u64::from(right);
-                }
-                out[env] = e;
-            }
-            let header = TerrainHeader {
-                tick: h.tick,
-                scored,
-                correct,
-                envs: n as u32,
-                refits: est.refits() as u32,
-            };
-            tx.send(header, &out)?;
-            ticks += 1;
+            serving.read(sample.payload())?;
+            tx.send(serving.header(h.tick), &serving.out)?;
+            serving.ticks += 1;
         }
     }
-    tracing::info!(
-        ticks,
-        scored,
-        correct,
-        refits = est.refits(),
-        stationary_windows = est.stationary(),
-        "estimator done"
-    );
+    serving.finish();
     Ok(())
+}
+
+/// The estimator in a run: its classifier, every env's newest estimate, and its scores.
+struct Serving {
+    est: Classifying,
+    /// Whose attitude the classifier reads (`estimator.signal`).
+    signal: AttitudeSource,
+    /// Every env's newest estimate, as published.
+    out: Vec<TerrainEstimate>,
+    settling: Settling,
+    scored: u64,
+    correct: u64,
+    ticks: u64,
+}
+
+impl Serving {
+    /// Reads one telemetry tick of every env into its estimate, scoring it by the env's
+    /// true ground.
+    fn read(&mut self, ticks: &[EnvTick]) -> anyhow::Result<()> {
+        let n = self.out.len();
+        for t in ticks.iter().filter(|t| (t.env as usize) < n) {
+            let env = t.env as usize;
+            let (starts, read) = self.settling.tick(env, t.events);
+            if starts {
+                // A robot placed somewhere new starts a new series: its old window says
+                // nothing about the ground it is on now.
+                self.est.reset_env(env)?;
+                self.out[env] = TerrainEstimate {
+                    env: t.env,
+                    class: wire::CLASS_UNKNOWN,
+                    ..TerrainEstimate::default()
+                };
+            }
+            if !read {
+                continue;
+            }
+            let e = match self.est.observe(t, self.signal) {
+                Ok(e) => e,
+                Err(err) => {
+                    tracing::warn!(env, error = %err, "observation skipped");
+                    continue;
+                }
+            };
+            if let Some(right) = self.est.scores(e.class, t.area) {
+                // Labels score the estimator; they never reach the fit.
+                self.scored += 1;
+                self.correct += u64::from(right);
+            }
+            self.out[env] = e;
+        }
+        Ok(())
+    }
+
+    /// The header of the estimates after telemetry tick `tick`.
+    fn header(&self, tick: u64) -> TerrainHeader {
+        TerrainHeader {
+            tick,
+            scored: self.scored,
+            correct: self.correct,
+            envs: self.out.len() as u32,
+            refits: self.est.refits() as u32,
+        }
+    }
+
+    /// Logs the closing line: ticks read, scores, refits and stationary windows.
+    fn finish(&self) {
+        tracing::info!(
+            ticks = self.ticks,
+            scored = self.scored,
+            correct = self.correct,
+            refits = self.est.refits(),
+            stationary_windows = self.est.stationary(),
+            "estimator done"
+        );
+    }
 }
 
 /// Which ticks start a new series and which are read: a robot put somewhere new (a respawn, a
