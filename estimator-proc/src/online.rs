@@ -242,18 +242,7 @@ impl OnlineEstimator {
                 value: sin_pitch,
             });
         }
-        let state = &mut self.envs[env];
-        let window_std = state.rolling.push(sin_pitch);
-        let moving = position
-            .and_then(|p| state.travel.push(p))
-            .is_none_or(|path| path >= self.min_travel);
-        match (window_std, moving) {
-            (Some(s), true) => self.pool.push(self.feature.of(s)),
-            (Some(_), false) => self.stats.stationary += 1,
-            (None, _) => {}
-        }
-        self.stats.observations += 1;
-        self.maybe_refit();
+        let (window_std, moving) = self.feed(env, sin_pitch, position);
         let pending = Estimate {
             class: None,
             posterior: 0.0,
@@ -283,26 +272,18 @@ impl OnlineEstimator {
         let log_evidence = model.joint_log(self.feature.of(s), joint);
         let raw_class = argmax(joint);
         let raw_posterior = (joint[raw_class] - log_evidence).exp();
-        if self.stay_prob <= 0.0 {
-            self.envs[env].held = Some((raw_class, raw_posterior));
-            return Ok(Estimate {
-                class: Some(raw_class),
-                posterior: raw_posterior,
-                raw_class: Some(raw_class),
-                ..pending
-            });
-        }
-        let belief = &mut self.envs[env].belief;
-        if belief.len() != k {
-            belief.clear();
-            belief.extend_from_slice(model.weights());
-        }
-        for (l, lw) in joint.iter_mut().zip(model.log_weights()) {
-            *l -= lw;
-        }
-        hmm_forward(belief, joint, 1.0 / self.window as f64, self.stay_prob);
-        let class = argmax(belief);
-        let posterior = belief[class];
+        let (class, posterior) = if self.stay_prob <= 0.0 {
+            (raw_class, raw_posterior)
+        } else {
+            let evidence = 1.0 / self.window as f64;
+            filter(
+                &mut self.envs[env].belief,
+                joint,
+                model,
+                evidence,
+                self.stay_prob,
+            )
+        };
         self.envs[env].held = Some((class, posterior));
         Ok(Estimate {
             class: Some(class),
@@ -310,6 +291,30 @@ impl OnlineEstimator {
             raw_class: Some(raw_class),
             ..pending
         })
+    }
+
+    /// Feeds env `env`'s value into its window, the pool and the counters, refitting when
+    /// due; returns the window's std once it is full, and whether the robot moved enough
+    /// over the window to classify it.
+    fn feed(
+        &mut self,
+        env: usize,
+        sin_pitch: f64,
+        position: Option<[f64; 2]>,
+    ) -> (Option<f64>, bool) {
+        let state = &mut self.envs[env];
+        let window_std = state.rolling.push(sin_pitch);
+        let moving = position
+            .and_then(|p| state.travel.push(p))
+            .is_none_or(|path| path >= self.min_travel);
+        match (window_std, moving) {
+            (Some(s), true) => self.pool.push(self.feature.of(s)),
+            (Some(_), false) => self.stats.stationary += 1,
+            (None, _) => {}
+        }
+        self.stats.observations += 1;
+        self.maybe_refit();
+        (window_std, moving)
     }
 
     fn maybe_refit(&mut self) {
@@ -333,6 +338,29 @@ impl OnlineEstimator {
             }
         }
     }
+}
+
+/// The HMM-filtered class and its probability: `belief` (started at the mixing weights of
+/// `model` when it has no entry per component) after one forward step on the joint
+/// log-densities `joint`, which become the emission log-densities.
+fn filter(
+    belief: &mut Vec<f64>,
+    joint: &mut [f64],
+    model: &Gmm,
+    evidence: f64,
+    stay: f64,
+) -> (usize, f64) {
+    let k = model.components();
+    if belief.len() != k {
+        belief.clear();
+        belief.extend_from_slice(model.weights());
+    }
+    for (l, lw) in joint.iter_mut().zip(model.log_weights()) {
+        *l -= lw;
+    }
+    hmm_forward(belief, joint, evidence, stay);
+    let class = argmax(belief);
+    (class, belief[class])
 }
 
 /// One forward-filter step: predict with the sticky transition, weight by the emission
