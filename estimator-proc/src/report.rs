@@ -89,6 +89,15 @@ impl AnalysisReport {
     /// Table 3 of the paper, ours beside theirs, then each window's confusion matrix.
     pub fn to_markdown(&self) -> String {
         let mut md = String::new();
+        self.write_intro(&mut md);
+        self.write_table_3(&mut md);
+        self.write_confusions(&mut md);
+        self.write_figures(&mut md);
+        md
+    }
+
+    /// The title and the paragraph saying what was analysed and how.
+    fn write_intro(&self, md: &mut String) {
         let _ = writeln!(md, "# Terrain identification (SPEC S7)\n");
         let _ = writeln!(
             md,
@@ -118,6 +127,10 @@ impl AnalysisReport {
                 ""
             }
         );
+    }
+
+    /// Table 3: each window's components and accuracy beside the paper's.
+    fn write_table_3(&self, md: &mut String) {
         let _ = writeln!(
             md,
             "| window | flat mean (std) / rough mean (std) | accuracy | n | stationary, left out | paper: flat / rough | paper accuracy |"
@@ -145,6 +158,10 @@ impl AnalysisReport {
                 r.stationary
             );
         }
+    }
+
+    /// Each window's confusion matrix, true area by class.
+    fn write_confusions(&self, md: &mut String) {
         let _ = writeln!(
             md,
             "\n## Confusion matrices (rows: true area; columns: class)\n"
@@ -161,13 +178,16 @@ impl AnalysisReport {
             }
             let _ = writeln!(md);
         }
+    }
+
+    /// The figures written beside the report, as images.
+    fn write_figures(&self, md: &mut String) {
         if !self.figures.is_empty() {
             let _ = writeln!(md, "## Figures\n");
             for f in &self.figures {
                 let _ = writeln!(md, "![{f}]({f})");
             }
         }
-        md
     }
 }
 
