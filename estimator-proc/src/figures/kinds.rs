@@ -8,6 +8,7 @@ use super::{
 use crate::Result;
 use crate::features::FeatureWindows;
 use crate::kinds::{Classifier, KindsResult};
+use crate::mixture::Mixture;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -113,31 +114,36 @@ pub fn draw_feature_scatter(path: &Path, windows: &FeatureWindows, r: &KindsResu
         }
         for (c, &kind) in r.component_kinds.iter().enumerate() {
             let color = area_color(kind);
-            // The two features' marginal covariance, back in raw units.
-            let (sx, sy) = (model.scale[0], model.scale[1]);
-            let cov = &model.covs[c];
-            let (a, b, e) = (cov[0] * sx * sx, cov[1] * sx * sy, cov[d + 1] * sy * sy);
-            let (mx, my) = (
-                model.centre[0] + sx * model.means[c][0],
-                model.centre[1] + sy * model.means[c][1],
-            );
-            // Cholesky of [[a, b], [b, e]] maps the circle of radius 2 onto the 2σ ellipse.
-            let l11 = a.sqrt();
-            let l21 = b / l11;
-            let l22 = (e - l21 * l21).max(0.0).sqrt();
-            let ellipse: Vec<(f64, f64)> = (0..=96)
-                .map(|k| {
-                    let t = std::f64::consts::TAU * f64::from(k) / 96.0;
-                    let (u, v) = (2.0 * t.cos(), 2.0 * t.sin());
-                    (mx + l11 * u, my + l21 * u + l22 * v)
-                })
-                .collect();
             chart.draw_series(std::iter::once(PathElement::new(
-                ellipse,
+                ellipse_2sigma(model, c, d),
                 color.stroke_width(3),
             )))?;
         }
         draw_legend(&mut chart)?;
         Ok(())
     })
+}
+
+/// Component `c`'s 2σ ellipse over features 0 and 1 of `model` (of `d` features), in raw
+/// units, as a closed path.
+fn ellipse_2sigma(model: &Mixture, c: usize, d: usize) -> Vec<(f64, f64)> {
+    // The two features' marginal covariance, back in raw units.
+    let (sx, sy) = (model.scale[0], model.scale[1]);
+    let cov = &model.covs[c];
+    let (a, b, e) = (cov[0] * sx * sx, cov[1] * sx * sy, cov[d + 1] * sy * sy);
+    let (mx, my) = (
+        model.centre[0] + sx * model.means[c][0],
+        model.centre[1] + sy * model.means[c][1],
+    );
+    // Cholesky of [[a, b], [b, e]] maps the circle of radius 2 onto the 2σ ellipse.
+    let l11 = a.sqrt();
+    let l21 = b / l11;
+    let l22 = (e - l21 * l21).max(0.0).sqrt();
+    (0..=96)
+        .map(|k| {
+            let t = std::f64::consts::TAU * f64::from(k) / 96.0;
+            let (u, v) = (2.0 * t.cos(), 2.0 * t.sin());
+            (mx + l11 * u, my + l21 * u + l22 * v)
+        })
+        .collect()
 }
