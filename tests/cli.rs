@@ -101,6 +101,18 @@ fn check_config_accepts_the_shipped_configs() {
 }
 
 #[test]
+fn check_config_explains_a_field_and_refuses_an_unknown_one() {
+    let (code, stdout, stderr) = lavatube(&["check-config", "--explain", "ppo.clip-coef"]);
+    assert_eq!((code, stderr.as_str()), (0, ""));
+    assert!(stdout.starts_with("ppo.clip-coef (advanced)\n"), "{stdout}");
+    assert!(stdout.contains("default: 0.2\n"), "{stdout}");
+    assert!(stdout.contains("accepts: [0.000001, 1]\n"), "{stdout}");
+    let (code, _, stderr) = lavatube(&["check-config", "--explain", "ppo.clip"]);
+    assert_eq!(code, 1, "an unknown field is a user error");
+    assert!(stderr.contains("no config field `ppo.clip`"), "{stderr}");
+}
+
+#[test]
 fn bad_run_id_is_refused_by_the_parser() {
     let (code, _, stderr) = lavatube(&["run", "--run-id", "a/b"]);
     assert_eq!(code, 1, "usage errors are user errors");

@@ -1,15 +1,40 @@
 //! `lavatube check-config F`: validate a config without starting anything. A file with a
 //! `[bench]` table is a bench file (`lavatube bench --config F`) and is checked as one,
-//! with the runtime config it names.
+//! with the runtime config it names. `--explain FIELD` prints a field's doc, default and
+//! accepted values; `--reference` the page of every field (docs/CONFIG.md).
 
+use super::UserError;
 use super::bench::Plan;
 use common::Config;
-use common::config::ConfigError;
-use std::path::Path;
+use common::config::{ConfigError, reference};
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
-pub fn check_config(path: &Path) -> anyhow::Result<ExitCode> {
-    println!("{}: ok ({})", path.display(), validate(path)?);
+#[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("what").required(true).args(["config", "explain", "reference"])))]
+pub struct CheckArgs {
+    /// The config file (TOML).
+    config: Option<PathBuf>,
+    /// Print this field's doc, default, accepted values, unit and tier (`ppo.clip-coef`),
+    /// or every field of a section (`ppo`).
+    #[arg(long, value_name = "FIELD")]
+    explain: Option<String>,
+    /// Print the reference of every field as Markdown (docs/CONFIG.md).
+    #[arg(long, conflicts_with_all = ["config", "explain"])]
+    reference: bool,
+}
+
+pub fn check_config(args: &CheckArgs) -> anyhow::Result<ExitCode> {
+    if args.reference {
+        print!("{}", reference::markdown());
+        return Ok(ExitCode::SUCCESS);
+    }
+    if let Some(path) = &args.config {
+        println!("{}: ok ({})", path.display(), validate(path)?);
+    }
+    if let Some(key) = &args.explain {
+        print!("{}", reference::explain(key).map_err(UserError)?);
+    }
     Ok(ExitCode::SUCCESS)
 }
 

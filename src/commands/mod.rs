@@ -11,7 +11,6 @@ mod status;
 mod swap;
 
 pub use crate::error::{EXIT_FAILURE, EXIT_USER, UserError, exit_code};
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 /// lavatube: train and evaluate terrain-adaptive driving policies for lava-tube robots.
@@ -35,11 +34,9 @@ pub enum Command {
     SwapLearner(swap::SwapArgs),
     /// The paper's terrain analysis (SPEC S7) on recorded telemetry: Table 3 and Figs. 5–8.
     Analyze(analyze::AnalyzeArgs),
-    /// Parse and validate a config file, start nothing.
-    CheckConfig {
-        /// The config file (TOML).
-        config: PathBuf,
-    },
+    /// Parse and validate a config file, start nothing; or explain a field, or print the
+    /// reference of every field.
+    CheckConfig(check_config::CheckArgs),
     /// Draw a run's map again (the world, every robot's path by estimated terrain, targets,
     /// successes and failures), from its run directory or a telemetry CSV.
     Map(map::MapArgs),
@@ -69,7 +66,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Reproduce(args) => reproduce::reproduce(args),
         Command::SwapLearner(args) => swap::swap_learner_command(args),
         Command::Analyze(args) => analyze::analyze(args),
-        Command::CheckConfig { config } => check_config::check_config(&config),
+        Command::CheckConfig(args) => check_config::check_config(&args),
         Command::Bench(args) => bench::bench(args),
         Command::BenchReader(args) => bench::reader(args),
         Command::BenchEcho(args) => bench::echo(args),

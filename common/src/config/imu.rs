@@ -5,8 +5,7 @@
 //! 175 µg/√Hz, gyro offset ±1 °/s, accelerometer offset ±20 mg (±2 mg after calibration),
 //! gyro bias instability 2 °/h.
 
-use super::ConfigError;
-use super::range::{count_in, in_range};
+use super::setting::{Setting, count, flag, real, settings};
 use serde::{Deserialize, Serialize};
 use std::marker::PhantomData;
 
@@ -23,6 +22,8 @@ pub enum AttitudeSource {
     Imu,
 }
 
+impl Setting for AttitudeSource {}
+
 /// The gyroscope, as a type: its errors' defaults and units (rad/s).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Gyro;
@@ -30,63 +31,59 @@ pub struct Gyro;
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Accel;
 
-/// One three-axis sensor's errors, `S` naming the sensor (and so its defaults and units).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-#[serde(bound(serialize = "", deserialize = "SensorErrors<S>: Default"))]
-pub struct SensorErrors<S> {
-    /// White noise density, unit/√Hz (per-sample σ = density × √sample rate). [0, 1].
-    pub noise_density: f64,
-    /// Bias random walk, unit/√s: the bias's σ grows as this × √t. [0, 1].
-    pub bias_walk: f64,
-    /// Turn-on bias: each axis's bias at spawn is drawn uniformly within ± this, unit. [0, 10].
-    pub turn_on_bias: f64,
-    /// Scale error: each axis's gain is 1 + a uniform draw within ± this. [0, 0.2].
-    pub scale_error: f64,
-    /// Full-scale range: readings saturate at ± this, unit. (0, 1000].
-    pub range: f64,
-    /// Output resolution, bits over [−range, range]; 0 leaves readings unquantised. 0 ..= 32.
-    pub bits: u32,
-    #[serde(skip)]
-    pub sensor: PhantomData<S>,
-}
-
-impl<S> SensorErrors<S> {
-    /// Checks each field; `keys` names them in the config, in declaration order.
-    fn validate(&self, keys: [&'static str; 6]) -> Result<(), ConfigError> {
-        in_range(keys[0], self.noise_density, 0.0, 1.0)?;
-        in_range(keys[1], self.bias_walk, 0.0, 1.0)?;
-        in_range(keys[2], self.turn_on_bias, 0.0, 10.0)?;
-        in_range(keys[3], self.scale_error, 0.0, 0.2)?;
-        in_range(keys[4], self.range, 1e-6, 1000.0)?;
-        count_in(keys[5], self.bits, 0, 32)
+settings! {
+    /// One three-axis sensor's errors, `S` naming the sensor (and so its defaults and units:
+    /// "unit" is rad/s for the gyroscope, m/s² for the accelerometer).
+    #[serde(default)]
+    #[serde(bound(serialize = "", deserialize = "SensorErrors<S>: Default"))]
+    pub struct SensorErrors<S>, required {
+        /// White noise density (per-sample σ = density × √sample rate).
+        pub noise_density: f64 => real(0.0, 1.0), "unit/√Hz", Research;
+        /// Bias random walk: the bias's σ grows as this × √t.
+        pub bias_walk: f64 => real(0.0, 1.0), "unit/√s", Research;
+        /// Turn-on bias: each axis's bias at spawn is drawn uniformly within ± this.
+        pub turn_on_bias: f64 => real(0.0, 10.0), "unit", Research;
+        /// Scale error: each axis's gain is 1 + a uniform draw within ± this.
+        pub scale_error: f64 => real(0.0, 0.2), "", Research;
+        /// Full-scale range: readings saturate at ± this (unit: rad/s for the gyroscope, m/s² for
+        /// the accelerometer).
+        pub range: f64 => real(1e-6, 1000.0), "unit", Research;
+        /// Output resolution over [−range, range]; 0 leaves readings unquantised.
+        pub bits: u32 => count(0, 32), "bits", Research;
+        /// The sensor, as a type; no setting.
+        #[serde(skip)]
+        pub sensor: PhantomData<S>;
     }
 }
 
-/// The Mahony orientation filter's gains and its accelerometer gate.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct FilterConfig {
-    /// Proportional gain on the gravity-direction error, 1/s. [0, 100]. Default 1.
-    pub kp: f64,
-    /// Integral gain (gyro bias estimation), 1/s²; 0 turns the bias integral off. [0, 10]. Default 0.05.
-    pub ki: f64,
-    /// The accelerometer corrects the attitude only while | |a| − g | ≤ this × g. (0, 10]. Default 0.1.
-    pub gate: f64,
-    /// Gyro samples averaged at each spawn, the robot standing still, as the filter's first bias estimate; 0 skips it. 0 ..= 10000. Default 25.
-    pub calibration_samples: usize,
+settings! {
+    /// The Mahony orientation filter's gains and its accelerometer gate.
+    pub struct FilterConfig {
+        /// Proportional gain on the gravity-direction error.
+        pub kp: f64 = 1.0 => real(0.0, 100.0), "1/s", Advanced;
+        /// Integral gain (gyro bias estimation); 0 turns the bias integral off.
+        pub ki: f64 = 0.05 => real(0.0, 10.0), "1/s²", Advanced;
+        /// The accelerometer corrects the attitude only while | |a| − g | ≤ this × g.
+        pub gate: f64 = 0.1 => real(1e-6, 10.0), "g", Advanced;
+        /// Gyro samples averaged at each spawn, the robot standing still, as the filter's first
+        /// bias estimate; 0 skips it.
+        pub calibration_samples: usize = 25 => count(0, 10_000), "samples", Advanced;
+    }
 }
 
-/// The IMU and its filter.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct ImuConfig {
-    /// Simulate the IMU even when neither `sim.observation` nor `estimator.signal` reads it,
-    /// so telemetry records its filtered angles beside the true ones. Default false.
-    pub simulate: bool,
-    pub gyro: SensorErrors<Gyro>,
-    pub accel: SensorErrors<Accel>,
-    pub filter: FilterConfig,
+settings! {
+    /// The IMU and its filter.
+    pub struct ImuConfig {
+        /// Simulate the IMU even when neither `sim.observation` nor `estimator.signal` reads it,
+        /// so telemetry records its filtered angles beside the true ones.
+        pub simulate: bool = false => flag(), "", Research;
+        /// The gyroscope's errors (rad/s).
+        pub gyro: SensorErrors<Gyro> = SensorErrors::<Gyro>::default();
+        /// The accelerometer's errors (m/s²).
+        pub accel: SensorErrors<Accel> = SensorErrors::<Accel>::default();
+        /// The orientation filter.
+        pub filter: FilterConfig = FilterConfig::default();
+    }
 }
 
 const DEG: f64 = std::f64::consts::PI / 180.0;
@@ -122,46 +119,5 @@ impl Default for SensorErrors<Accel> {
             bits: 16,
             sensor: PhantomData,
         }
-    }
-}
-
-impl Default for FilterConfig {
-    fn default() -> Self {
-        Self {
-            kp: 1.0,
-            ki: 0.05,
-            gate: 0.1,
-            calibration_samples: 25,
-        }
-    }
-}
-
-impl ImuConfig {
-    pub(super) fn validate(&self) -> Result<(), ConfigError> {
-        self.gyro.validate([
-            "sim.imu.gyro.noise-density",
-            "sim.imu.gyro.bias-walk",
-            "sim.imu.gyro.turn-on-bias",
-            "sim.imu.gyro.scale-error",
-            "sim.imu.gyro.range",
-            "sim.imu.gyro.bits",
-        ])?;
-        self.accel.validate([
-            "sim.imu.accel.noise-density",
-            "sim.imu.accel.bias-walk",
-            "sim.imu.accel.turn-on-bias",
-            "sim.imu.accel.scale-error",
-            "sim.imu.accel.range",
-            "sim.imu.accel.bits",
-        ])?;
-        in_range("sim.imu.filter.kp", self.filter.kp, 0.0, 100.0)?;
-        in_range("sim.imu.filter.ki", self.filter.ki, 0.0, 10.0)?;
-        in_range("sim.imu.filter.gate", self.filter.gate, 1e-6, 10.0)?;
-        count_in(
-            "sim.imu.filter.calibration-samples",
-            self.filter.calibration_samples,
-            0,
-            10_000,
-        )
     }
 }

@@ -1,9 +1,10 @@
 //! The configuration tree: one TOML file, parsed with unknown keys refused, then validated.
 //!
-//! Every field has a documented default, unit and range; every interpretation of the paper
-//! (SPEC "(interpretation)") is a field here. Parsing and validation are two steps: serde
-//! checks types and names, [`Config::validate`] checks ranges and cross-field rules. Each
-//! section is a module holding its fields and their checks.
+//! Every field is declared once ([`setting::settings!`]) with its default, range or choices,
+//! unit, tier and doc; every interpretation of the paper (SPEC "(interpretation)") is a field
+//! here. Parsing and validation are two steps: serde checks types and names,
+//! [`Config::validate`] checks ranges and cross-field rules. Each section is a module holding
+//! its fields and the rules between them; [`reference`] makes docs/CONFIG.md from them.
 
 mod estimator;
 mod external;
@@ -12,9 +13,11 @@ mod model_file;
 mod net;
 mod ppo;
 pub mod range;
+pub mod reference;
 mod reproduce;
 mod robot;
 mod run;
+pub mod setting;
 mod sim;
 mod supervise;
 mod task;
@@ -39,7 +42,7 @@ pub use terrain::{
 };
 
 use serde::de::DeserializeOwned;
-use serde::{Deserialize, Serialize};
+use setting::Setting;
 use std::path::{Path, PathBuf};
 
 /// A configuration problem, always naming the field or file it is about.
@@ -56,23 +59,23 @@ pub enum ConfigError {
     },
     #[error("config field `{field}` = {value}: {reason}")]
     Invalid {
-        field: &'static str,
+        field: String,
         value: String,
         reason: String,
     },
 }
 
-/// The whole configuration of a run.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct Config {
-    pub run: RunConfig,
-    pub sim: SimConfig,
-    pub ppo: PpoConfig,
-    pub estimator: EstimatorConfig,
-    pub supervise: SuperviseConfig,
-    pub reproduce: ReproduceConfig,
-    pub net: NetConfig,
+setting::settings! {
+    /// The whole configuration of a run.
+    pub struct Config {
+        pub run: RunConfig = RunConfig::default();
+        pub sim: SimConfig = SimConfig::default();
+        pub ppo: PpoConfig = PpoConfig::default();
+        pub estimator: EstimatorConfig = EstimatorConfig::default();
+        pub supervise: SuperviseConfig = SuperviseConfig::default();
+        pub reproduce: ReproduceConfig = ReproduceConfig::default();
+        pub net: NetConfig = NetConfig::default();
+    }
 }
 
 impl Config {
@@ -127,10 +130,12 @@ impl Config {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}\n"))
     }
 
-    /// Range and cross-field checks. Each section checks its own fields (PPO's minibatch
-    /// against the sim's batch); the sections go in a fixed order, `supervise.grace-ms`
-    /// after `[reproduce]`, so a config with several mistakes always reports the same one.
+    /// Range and cross-field checks: first every field against its declared range, in
+    /// declaration order, then each section's rules between fields (PPO's minibatch against
+    /// the sim's batch) in a fixed order, so a config with several mistakes always reports
+    /// the same one.
     pub fn validate(&self) -> Result<(), ConfigError> {
+        Setting::check(self, "", &setting::form("the whole config"))?;
         self.run.validate(self.sim.acting)?;
         self.sim.validate()?;
         self.ppo.validate(self.sim.num_envs())?;
@@ -142,10 +147,7 @@ impl Config {
                 "needs the IMU simulated: set sim.observation = \"imu\" or sim.imu.simulate = true",
             ));
         }
-        self.supervise.validate_restarts()?;
-        self.reproduce.validate(&self.sim.terrain.kinds())?;
-        self.supervise.validate_grace()?;
-        self.net.validate()
+        self.reproduce.validate(&self.sim.terrain.kinds())
     }
 
     /// The travel per decision step below which [`EstimatorConfig::min_speed`] deems a
@@ -168,7 +170,7 @@ fn extended(mut table: toml::Table, path: &Path, depth: usize) -> Result<toml::T
         return Ok(table);
     };
     let invalid = |reason: &str| ConfigError::Invalid {
-        field: EXTENDS,
+        field: EXTENDS.to_owned(),
         value: base.to_string(),
         reason: format!("{reason} (in {})", path.display()),
     };

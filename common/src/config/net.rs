@@ -2,42 +2,29 @@
 //! how a sim host asks for the newest policies.
 
 use super::ConfigError;
-use super::range::{count_in, invalid};
-use serde::{Deserialize, Serialize};
+use super::range::invalid;
+use super::setting::{count, form, settings};
 use std::path::{Path, PathBuf};
 
 /// The shortest shared secret accepted, bytes: below the MAC's 256-bit key it is weaker than the MAC.
 pub const MIN_KEY_BYTES: usize = 32;
 
-/// How the hosts of a run talk to each other.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct NetConfig {
-    /// File with the run's shared secret (at least 32 bytes; every host needs the same one);
-    /// each frame between hosts carries a MAC (keyed BLAKE3) made with it. Required across hosts.
-    pub key_file: Option<PathBuf>,
-    /// How often a sim host asks for the newest policies until it has them, milliseconds. 50 ..= 60000.
-    pub policy_query_ms: u64,
-    /// Sim hosts the learner host trains with: its run ends once each has stepped `run.total-steps`. 1 ..= 1024.
-    pub sim_hosts: u32,
-}
-
-impl Default for NetConfig {
-    fn default() -> Self {
-        Self {
-            key_file: None,
-            policy_query_ms: 500,
-            sim_hosts: 1,
-        }
+settings! {
+    /// How the hosts of a run talk to each other.
+    pub struct NetConfig {
+        /// File with the run's shared secret (at least 32 bytes; every host needs the same
+        /// one); each frame between hosts carries a MAC (keyed BLAKE3) made with it. Required
+        /// across hosts.
+        pub key_file: Option<PathBuf> = None => form("a key file"), "", Essential;
+        /// How often a sim host asks for the newest policies until it has them.
+        pub policy_query_ms: u64 = 500 => count(50, 60_000), "ms", Advanced;
+        /// Sim hosts the learner host trains with: its run ends once each has stepped
+        /// `run.total-steps`.
+        pub sim_hosts: u32 = 1 => count(1, 1024), "hosts", Essential;
     }
 }
 
 impl NetConfig {
-    pub(super) fn validate(&self) -> Result<(), ConfigError> {
-        count_in("net.policy-query-ms", self.policy_query_ms, 50, 60_000)?;
-        count_in("net.sim-hosts", self.sim_hosts, 1, 1024)
-    }
-
     /// The shared key, read from `key-file`: fails in one line when the run has none, or it
     /// cannot be read or is too short.
     pub fn read_key(&self) -> Result<Vec<u8>, ConfigError> {

@@ -5,16 +5,16 @@ use super::ConfigError;
 use std::fmt::{Debug, Display};
 
 /// The error for `field` holding `value`, with why it is refused.
-pub fn invalid(field: &'static str, value: impl Debug, reason: impl Into<String>) -> ConfigError {
+pub fn invalid(field: &str, value: impl Debug, reason: impl Into<String>) -> ConfigError {
     ConfigError::Invalid {
-        field,
+        field: field.to_owned(),
         value: format!("{value:?}"),
         reason: reason.into(),
     }
 }
 
 /// Checks `lo <= value <= hi` (and finiteness) for one field.
-pub fn in_range(field: &'static str, value: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
+pub fn in_range(field: &str, value: f64, lo: f64, hi: f64) -> Result<(), ConfigError> {
     if value.is_finite() && (lo..=hi).contains(&value) {
         Ok(())
     } else {
@@ -23,7 +23,7 @@ pub fn in_range(field: &'static str, value: f64, lo: f64, hi: f64) -> Result<(),
 }
 
 /// Checks `lo <= value <= hi` for a count (any integer type).
-pub fn count_in<T>(field: &'static str, value: T, lo: T, hi: T) -> Result<(), ConfigError>
+pub fn count_in<T>(field: &str, value: T, lo: T, hi: T) -> Result<(), ConfigError>
 where
     T: Copy + PartialOrd + Debug + Display,
 {
@@ -35,7 +35,7 @@ where
 }
 
 /// Checks a list of counts: non-empty, each in `lo ..= hi`, no value twice.
-pub fn count_list<T>(field: &'static str, values: &[T], lo: T, hi: T) -> Result<(), ConfigError>
+pub fn count_list<T>(field: &str, values: &[T], lo: T, hi: T) -> Result<(), ConfigError>
 where
     T: Copy + Ord + Debug + Display,
 {

@@ -1,58 +1,60 @@
 //! `[run]`: how runs are named, seeded and paced, and the policy slots their learners fill.
 
-use super::range::{in_range, invalid};
+use super::range::invalid;
+use super::setting::{Setting, choices, count, flag, form, real, settings};
 use super::{AreaKind, ConfigError};
 use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 
-/// How runs are named, seeded and paced.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct RunConfig {
-    /// Master seed; every process derives its streams from it. Any u64. Default 1.
-    pub seed: u64,
-    /// `sync`: the sim waits for the policy learned from each rollout (on-policy PPO);
-    /// `async`: the sim never waits. Default `sync`.
-    pub mode: LearnMode,
-    /// Total environment steps (decision steps summed over envs) to train for; with
-    /// `sim.acting = "external"` the gym client decides instead. Default 2.5 M (SPEC S6).
-    /// Range 1 ..= 10^10.
-    pub total_steps: u64,
-    /// Directory under which each run gets `<out-dir>/<run-id>/`. Default `runs`.
-    pub out_dir: PathBuf,
-    /// The learners of the run, one per policy slot (DESIGN §5). A `general` learner trains on
-    /// every transition; a `flat` or `rough` one only on those the estimator assigned to its
-    /// terrain (SPEC S8). Each slot at most once. Default `["general"]`.
-    pub learners: Vec<PolicySlot>,
-    /// Start every learner from this learner checkpoint's weights and observation statistics
-    /// with fresh counters and optimizer (a warm start, e.g. the general model from the flat
-    /// one). Relative paths are relative to the config file. Default none.
-    pub init_from: Option<PathBuf>,
-    /// `ppo.learning-rate` of the learners started from `run.init-from` (it decays from there
-    /// like every run's). (0, 1]. Default unset: the `[ppo]` one.
-    pub init_learning_rate: Option<f64>,
-    /// Learners that start from new weights at `ppo.learning-rate` although `run.init-from`
-    /// is set: slots whose driving the warm start's policy would only unlearn slowly. Each in
-    /// `run.learners`. Default none.
-    pub fresh: Vec<PolicySlot>,
-    /// Policy slots served frozen from a learner checkpoint, never trained (evaluation, e.g.
-    /// switching between fixed FTM and RTM): `{ flat = "ftm.ckpt", rough = "rtm.ckpt" }`.
-    /// Relative paths are relative to the config file. No slot may also be in `learners`.
-    pub frozen: std::collections::BTreeMap<PolicySlot, PathBuf>,
-    /// The sim also writes every env's per-tick telemetry to `<run dir>/telemetry.csv`, as
-    /// `sim-proc --telemetry` does (one row per env and tick; large). Default false.
-    pub telemetry_csv: bool,
-    /// The launcher prints a summary line (step, elapsed, mean return, success, entropy, KL)
-    /// each time a learner passes another multiple of this many env steps; 0 prints none.
-    /// Default 50,000 (ML-Agents' `summary_freq`).
-    pub summary_every: u64,
-    /// Record the run for the Rerun viewer: the file (`.rrd`, relative to the run directory)
-    /// that recorder-proc writes the terrain, every robot's pose and trail and the estimator's
-    /// signals to. Its death never stops the run. Default none.
-    pub record: Option<PathBuf>,
-    /// Start estimator-proc, which classifies the terrain online (SPEC S8); false gives its
-    /// CPU to the sim where no env switches and every learner is `general`. Default true.
-    pub estimator: bool,
+settings! {
+    /// How runs are named, seeded and paced.
+    pub struct RunConfig {
+        /// Master seed; every process derives its streams from it.
+        pub seed: u64 = 1 => count(0, u64::MAX), "", Essential;
+        /// `sync`: the sim waits for the policy learned from each rollout (on-policy PPO);
+        /// `async`: the sim never waits.
+        pub mode: LearnMode = LearnMode::Sync => choices::<LearnMode>(), "", Essential;
+        /// Total environment steps (decision steps summed over envs) to train for (SPEC S6);
+        /// with `sim.acting = "external"` the gym client decides instead.
+        pub total_steps: u64 = 2_500_000 => count(1, 10_000_000_000), "steps", Essential;
+        /// Directory under which each run gets `<out-dir>/<run-id>/`.
+        pub out_dir: PathBuf = PathBuf::from("runs") => form("a directory"), "", Essential;
+        /// The learners of the run, one per policy slot (DESIGN §5). A `general` learner
+        /// trains on every transition; a `flat` or `rough` one only on those the estimator
+        /// assigned to its terrain (SPEC S8). Each slot at most once.
+        pub learners: Vec<PolicySlot> = vec![PolicySlot::General] => choices::<PolicySlot>(), "", Essential;
+        /// Start every learner from this learner checkpoint's weights and observation
+        /// statistics with fresh counters and optimizer (a warm start, e.g. the general model
+        /// from the flat one). Relative paths are relative to the config file; unset: none.
+        pub init_from: Option<PathBuf> = None => form("a learner checkpoint file"), "", Essential;
+        /// `ppo.learning-rate` of the learners started from `run.init-from` (it decays from
+        /// there like every run's); unset: the `[ppo]` one.
+        pub init_learning_rate: Option<f64> = None => real(1e-12, 1.0), "", Advanced;
+        /// Learners that start from new weights at `ppo.learning-rate` although
+        /// `run.init-from` is set: slots whose driving the warm start's policy would only
+        /// unlearn slowly. Each in `run.learners`.
+        pub fresh: Vec<PolicySlot> = Vec::new() => choices::<PolicySlot>(), "", Research;
+        /// Policy slots served frozen from a learner checkpoint, never trained (evaluation,
+        /// e.g. switching between fixed FTM and RTM): `{ flat = "ftm.ckpt", rough = "rtm.ckpt" }`.
+        /// Relative paths are relative to the config file. No slot may also be in `learners`.
+        pub frozen: BTreeMap<PolicySlot, PathBuf> = BTreeMap::new()
+            => form("a table of policy slot -> learner checkpoint file"), "", Essential;
+        /// The sim also writes every env's per-tick telemetry to `<run dir>/telemetry.csv`, as
+        /// `sim-proc --telemetry` does (one row per env and tick; large).
+        pub telemetry_csv: bool = false => flag(), "", Advanced;
+        /// The launcher prints a summary line (step, elapsed, mean return, success, entropy,
+        /// KL) each time a learner passes another multiple of this many env steps (ML-Agents'
+        /// `summary_freq`); 0 prints none.
+        pub summary_every: u64 = 50_000 => count(0, 10_000_000_000), "steps", Advanced;
+        /// Record the run for the Rerun viewer: the file (`.rrd`, relative to the run
+        /// directory) that recorder-proc writes the terrain, every robot's pose and trail and
+        /// the estimator's signals to. Its death never stops the run. Unset: no recording.
+        pub record: Option<PathBuf> = None => form("an .rrd file"), "", Advanced;
+        /// Start estimator-proc, which classifies the terrain online (SPEC S8); false gives
+        /// its CPU to the sim where no env switches and every learner is `general`.
+        pub estimator: bool = true => flag(), "", Advanced;
+    }
 }
 
 /// A policy slot of the sim's policy set (DESIGN §5): what a learner fills and an env acts with.
@@ -67,6 +69,8 @@ pub enum PolicySlot {
     Sand,
 }
 
+impl Setting for PolicySlot {}
+
 impl PolicySlot {
     pub const ALL: [PolicySlot; 6] = [
         PolicySlot::General,
@@ -80,6 +84,13 @@ impl PolicySlot {
     /// The slot's index on the wire (`PolicyHeader::slot`, `Transition::slot`).
     pub fn index(self) -> usize {
         self as usize
+    }
+
+    /// The slot at a wire index (`PolicySlot::index`); `None` for an index no slot has.
+    pub fn from_index(index: u32) -> Option<Self> {
+        usize::try_from(index)
+            .ok()
+            .and_then(|i| Self::ALL.get(i).copied())
     }
 
     pub fn name(self) -> &'static str {
@@ -183,25 +194,7 @@ pub enum LearnMode {
     Async,
 }
 
-impl Default for RunConfig {
-    fn default() -> Self {
-        Self {
-            seed: 1,
-            mode: LearnMode::Sync,
-            total_steps: 2_500_000,
-            out_dir: PathBuf::from("runs"),
-            learners: vec![PolicySlot::General],
-            init_from: None,
-            init_learning_rate: None,
-            fresh: Vec::new(),
-            frozen: std::collections::BTreeMap::default(),
-            telemetry_csv: false,
-            summary_every: 50_000,
-            record: None,
-            estimator: true,
-        }
-    }
-}
+impl Setting for LearnMode {}
 
 impl RunConfig {
     /// The checkpoint the learner of `slot` starts from: `run.init-from`, unless the slot is
@@ -212,15 +205,9 @@ impl RunConfig {
             .filter(|_| !self.fresh.contains(&slot))
     }
 
-    /// Its own fields; `acting` decides whether the run needs a policy slot.
+    /// The rules between fields (each field's own range is [`Setting::check`]'s); `acting`
+    /// decides whether the run needs a policy slot.
     pub(super) fn validate(&self, acting: Acting) -> Result<(), ConfigError> {
-        if self.total_steps == 0 {
-            return Err(invalid(
-                "run.total-steps",
-                self.total_steps,
-                "must be at least 1",
-            ));
-        }
         if acting == Acting::External {
             if !self.learners.is_empty() || !self.frozen.is_empty() {
                 return Err(invalid(
@@ -246,9 +233,6 @@ impl RunConfig {
             && !p.is_file()
         {
             return Err(invalid("run.init-from", p, "file not found"));
-        }
-        if let Some(lr) = self.init_learning_rate {
-            in_range("run.init-learning-rate", lr, 1e-12, 1.0)?;
         }
         if !self.fresh.is_empty()
             && (self.init_from.is_none() || self.fresh.iter().any(|s| !self.learners.contains(s)))
@@ -280,6 +264,17 @@ impl RunConfig {
 mod tests {
     use super::*;
     use crate::config::tests::parse;
+
+    #[test]
+    fn wire_indices_name_slots_and_nothing_past_them() {
+        for slot in PolicySlot::ALL {
+            let index = u32::try_from(slot.index()).expect("small");
+            assert_eq!(PolicySlot::from_index(index), Some(slot));
+        }
+        assert_eq!(PolicySlot::from_index(1), Some(PolicySlot::Flat));
+        assert_eq!(PolicySlot::from_index(6), None);
+        assert_eq!(PolicySlot::from_index(u32::MAX), None);
+    }
 
     #[test]
     fn learner_slots_are_checked() {

@@ -1,7 +1,8 @@
 //! `[sim]`: the envs, their areas and the physics timing; terrain, robot and task have their
 //! own sections.
 
-use super::range::{count_in, in_range, invalid};
+use super::range::invalid;
+use super::setting::{Setting, choices, count, flag, real, settings};
 use super::{
     Acting, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, PolicySlot, RobotConfig,
     TaskConfig, TerrainConfig,
@@ -27,6 +28,8 @@ pub enum AreaKind {
     Gravel,
     Sand,
 }
+
+impl Setting for AreaKind {}
 
 impl AreaKind {
     /// The terrain kinds, in code order (every area but the mixed course).
@@ -63,15 +66,17 @@ impl AreaKind {
     }
 }
 
-/// An axis-aligned rectangle on the ground (X-Z plane), metres.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case")]
-pub struct Rect {
-    /// [min, max] along X, metres.
-    pub x: [f64; 2],
-    /// [min, max] along Z, metres.
-    pub z: [f64; 2],
+settings! {
+    /// An axis-aligned rectangle on the ground (X-Z plane), metres.
+    pub struct Rect, required {
+        /// [min, max] along X.
+        pub x: [f64; 2] => real(-1000.0, 1000.0), "m", Advanced;
+        /// [min, max] along Z.
+        pub z: [f64; 2] => real(-1000.0, 1000.0), "m", Advanced;
+    }
 }
+
+impl Copy for Rect {}
 
 impl Rect {
     pub fn contains(&self, x: f64, z: f64, margin: f64) -> bool {
@@ -82,90 +87,70 @@ impl Rect {
     }
 }
 
-/// The simulator: envs, physics timing, terrain, robot and task rules.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct SimConfig {
-    /// Envs in the flat area. 0 ..= 1024. Default 9 (SPEC S6, initial flat model).
-    pub flat_envs: usize,
-    /// Envs in the rough area. 0 ..= 1024. Default 0.
-    pub rough_envs: usize,
-    /// Envs in the slope area (not in the paper; needs one in `terrain.areas`), after the
-    /// rough ones. 0 ..= 1024. Default 0.
-    pub slope_envs: usize,
-    /// Envs in the gravel area (not in the paper; needs one in `terrain.areas`), after the
-    /// slope ones. 0 ..= 1024. Default 0.
-    pub gravel_envs: usize,
-    /// Envs in the sand area (not in the paper; needs one in `terrain.areas`), after the
-    /// gravel ones. 0 ..= 1024. Default 0.
-    pub sand_envs: usize,
-    /// Envs on the mixed course (`terrain.mixed-area`), after all the others. 0 ..= 1024.
-    /// Default 0.
-    pub mixed_envs: usize,
-    /// Threads stepping the worlds (1 is allowed). 1 ..= 64. Default 2.
-    pub threads: usize,
-    /// The policy slot the envs act with, `switch` (DESIGN §5), or `external` (a gym client
-    /// acts; the run has no learners). A slot without a policy yet falls back to `general`,
-    /// then to any slot that has one. Default `general`.
-    pub acting: Acting,
-    /// The gym client of `acting = "external"`.
-    pub external: ExternalConfig,
-    /// Switching: ticks a new terrain estimate must hold before an env changes policy. 1 ..= 10000. Default 10.
-    pub switch_dwell: usize,
-    /// Switching, beyond SPEC S8: ticks a new estimate must hold before an env leaves the
-    /// named slots' policies, where leaving a cautious one by mistake costs more than keeping
-    /// it (e.g. `{ sand = 30 }`). Each 1 ..= 10000; other slots use `switch-dwell`. Default none.
-    pub leave_dwell: BTreeMap<PolicySlot, usize>,
-    /// Act with each policy's mean action instead of a sample (evaluation; the rollouts'
-    /// log-probabilities are then not those of the actions). Default false.
-    pub mean_actions: bool,
-    /// Telemetry readers (estimator, launcher) are woken at most once per this many
-    /// microseconds; every tick is still published and read, in batches. A wake-up is a
-    /// datagram per reader, about 20 µs of a ~220 µs single-env tick, so waking per tick costs
-    /// the sim a tenth of its speed; the price is up to this much delay before a reader sees
-    /// a tick. 0: wake them on every tick. 0 ..= 1000000. Default 1000.
-    pub telemetry_notify_us: usize,
-    /// Physics time step, seconds: contacts are found once per step (SPEC S2). (0, 0.1].
-    /// Default 1/30; a simulated IMU, which samples once per step, needs at most 0.02.
-    pub physics_dt: f64,
-    /// Physics steps per decision step (SPEC S2). 1 ..= 100. Default 3.
-    pub substeps: usize,
-    pub terrain: TerrainConfig,
-    pub robot: RobotConfig,
-    /// Where the observation's attitude terms come from: `truth` (the paper's) or `imu`. Default truth.
-    pub observation: AttitudeSource,
-    /// The simulated IMU and its filter: run when `observation` or `estimator.signal` is
-    /// `imu`, or with `imu.simulate`.
-    pub imu: ImuConfig,
-    pub task: TaskConfig,
-}
-
-impl Default for SimConfig {
-    fn default() -> Self {
-        Self {
-            flat_envs: 9,
-            rough_envs: 0,
-            slope_envs: 0,
-            gravel_envs: 0,
-            sand_envs: 0,
-            mixed_envs: 0,
-            threads: 2,
-            acting: Acting::General,
-            external: ExternalConfig::default(),
-            switch_dwell: 10,
-            leave_dwell: BTreeMap::new(),
-            mean_actions: false,
-            telemetry_notify_us: 1000,
-            physics_dt: 1.0 / 30.0,
-            substeps: 3,
-            terrain: TerrainConfig::default(),
-            robot: RobotConfig::default(),
-            observation: AttitudeSource::Truth,
-            imu: ImuConfig::default(),
-            task: TaskConfig::default(),
-        }
+settings! {
+    /// The simulator: envs, physics timing, terrain, robot and task rules.
+    pub struct SimConfig {
+        /// Envs in the flat area (SPEC S6, initial flat model: 9).
+        pub flat_envs: usize = 9 => count(0, 1024), "envs", Essential;
+        /// Envs in the rough area.
+        pub rough_envs: usize = 0 => count(0, 1024), "envs", Essential;
+        /// Envs in the slope area (not in the paper; needs one in `terrain.areas`), after the
+        /// rough ones.
+        pub slope_envs: usize = 0 => count(0, 1024), "envs", Essential;
+        /// Envs in the gravel area (not in the paper; needs one in `terrain.areas`), after the
+        /// slope ones.
+        pub gravel_envs: usize = 0 => count(0, 1024), "envs", Essential;
+        /// Envs in the sand area (not in the paper; needs one in `terrain.areas`), after the
+        /// gravel ones.
+        pub sand_envs: usize = 0 => count(0, 1024), "envs", Essential;
+        /// Envs on the mixed course (`terrain.mixed-area`), after all the others.
+        pub mixed_envs: usize = 0 => count(0, 1024), "envs", Essential;
+        /// Threads stepping the worlds (1 is allowed).
+        pub threads: usize = 2 => count(1, 64), "threads", Advanced;
+        /// The policy slot the envs act with, `switch` (DESIGN §5), or `external` (a gym client
+        /// acts; the run has no learners). A slot without a policy yet falls back to `general`,
+        /// then to any slot that has one.
+        pub acting: Acting = Acting::General => choices::<Acting>(), "", Essential;
+        /// The gym client of `acting = "external"`.
+        pub external: ExternalConfig = ExternalConfig::default();
+        /// Switching: ticks a new terrain estimate must hold before an env changes policy.
+        pub switch_dwell: usize = 10 => count(1, 10_000), "ticks", Research;
+        /// Switching, beyond SPEC S8: ticks a new estimate must hold before an env leaves the
+        /// named slots' policies, where leaving a cautious one by mistake costs more than keeping
+        /// it (e.g. `{ sand = 30 }`); other slots use `switch-dwell`.
+        pub leave_dwell: BTreeMap<PolicySlot, usize> = BTreeMap::new()
+            => count(1, 10_000), "ticks", Research;
+        /// Act with each policy's mean action instead of a sample (evaluation; the rollouts'
+        /// log-probabilities are then not those of the actions).
+        pub mean_actions: bool = false => flag(), "", Research;
+        /// Telemetry readers (estimator, launcher) are woken at most once per this many
+        /// microseconds; every tick is still published and read, in batches. A wake-up is a
+        /// datagram per reader, about 20 µs of a ~220 µs single-env tick, so waking per tick costs
+        /// the sim a tenth of its speed; the price is up to this much delay before a reader sees
+        /// a tick. 0: wake them on every tick.
+        pub telemetry_notify_us: usize = 1000 => count(0, 1_000_000), "µs", Advanced;
+        /// Physics time step: contacts are found once per step (SPEC S2); a simulated IMU, which
+        /// samples once per step, needs at most 0.02.
+        pub physics_dt: f64 = 1.0 / 30.0 => real(1e-4, 0.1), "s", Advanced;
+        /// Physics steps per decision step (SPEC S2).
+        pub substeps: usize = 3 => count(1, 100), "steps", Advanced;
+        /// The floor: areas, procedural relief or a heightmap.
+        pub terrain: TerrainConfig = TerrainConfig::default();
+        /// The robot's body, wheels and motors.
+        pub robot: RobotConfig = RobotConfig::default();
+        /// Where the observation's attitude terms come from: `truth` (the paper's) or `imu`.
+        pub observation: AttitudeSource = AttitudeSource::Truth
+            => choices::<AttitudeSource>(), "", Research;
+        /// The simulated IMU and its filter: run when `observation` or `estimator.signal` is
+        /// `imu`, or with `imu.simulate`.
+        pub imu: ImuConfig = ImuConfig::default();
+        /// The episode and reward rules.
+        pub task: TaskConfig = TaskConfig::default();
     }
 }
+
+/// `sim.acting`'s choices are [`Acting`]'s names.
+impl Setting for Acting {}
 
 impl SimConfig {
     /// Whether each env carries the simulated IMU and its filter.
@@ -237,14 +222,9 @@ impl SimConfig {
         self.physics_dt * self.substeps as f64
     }
 
-    /// Its own fields, then terrain, robot and task.
+    /// The rules between fields (each field's own range is [`super::setting::Setting::check`]'s),
+    /// then terrain's, robot's and task's.
     pub(super) fn validate(&self) -> Result<(), ConfigError> {
-        count_in("sim.flat-envs", self.flat_envs, 0, 1024)?;
-        count_in("sim.rough-envs", self.rough_envs, 0, 1024)?;
-        count_in("sim.slope-envs", self.slope_envs, 0, 1024)?;
-        count_in("sim.gravel-envs", self.gravel_envs, 0, 1024)?;
-        count_in("sim.sand-envs", self.sand_envs, 0, 1024)?;
-        count_in("sim.mixed-envs", self.mixed_envs, 0, 1024)?;
         if self.num_envs() == 0 {
             return Err(invalid(
                 "sim.flat-envs",
@@ -267,27 +247,6 @@ impl SimConfig {
                 ));
             }
         }
-        count_in("sim.switch-dwell", self.switch_dwell, 1, 10_000)?;
-        if let Some((slot, ticks)) = self
-            .leave_dwell
-            .iter()
-            .find(|&(_, &t)| !(1..=10_000).contains(&t))
-        {
-            return Err(invalid(
-                "sim.leave-dwell",
-                ticks,
-                format!("for {}, must be in [1, 10000]", slot.name()),
-            ));
-        }
-        count_in(
-            "sim.telemetry-notify-us",
-            self.telemetry_notify_us,
-            0,
-            1_000_000,
-        )?;
-        count_in("sim.threads", self.threads, 1, 64)?;
-        in_range("sim.physics-dt", self.physics_dt, 1e-4, 0.1)?;
-        count_in("sim.substeps", self.substeps, 1, 100)?;
         if self.simulates_imu() && self.physics_dt > IMU_MAX_PHYSICS_DT + 1e-12 {
             return Err(invalid(
                 "sim.physics-dt",
@@ -299,10 +258,8 @@ impl SimConfig {
                 ),
             ));
         }
-        self.external.validate()?;
         self.terrain.validate()?;
         self.robot.validate()?;
-        self.imu.validate()?;
         self.task.validate()?;
         Ok(())
     }

@@ -1,7 +1,6 @@
 //! `[supervise]`: how the launcher restarts and stops its processes (DESIGN §4).
 
-use super::ConfigError;
-use super::range::{count_in, invalid};
+use super::setting::{Setting, choices, count, settings};
 use serde::{Deserialize, Serialize};
 
 /// When the launcher restarts a process that exited.
@@ -16,23 +15,29 @@ pub enum Restart {
     Always,
 }
 
-/// One process's restart policy.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case")]
-pub struct RestartPolicy {
-    pub restart: Restart,
-    /// Restarts allowed within any `window-s` seconds; one more exit ends the run. 0 ..= 1000.
-    pub max_restarts: u32,
-    /// Wait before a restart, doubled for each restart within the window (capped at 30 s). 0 ..= 600000.
-    pub backoff_ms: u64,
-    /// The window `max-restarts` counts over, seconds; 0 counts over the whole run. 0 ..= 86400.
-    #[serde(default = "default_window_s")]
-    pub window_s: u64,
+impl Setting for Restart {}
+
+settings! {
+    /// One process's restart policy.
+    pub struct RestartPolicy, required {
+        /// When the process comes back after it exits: `never`, `on-failure` or `always`.
+        pub restart: Restart => choices::<Restart>(), "", Advanced;
+        /// Restarts allowed within any `window-s` seconds; one more exit ends the run.
+        pub max_restarts: u32 => count(0, 1000), "restarts", Advanced;
+        /// Wait before a restart, doubled for each restart within the window (capped at 30 s).
+        pub backoff_ms: u64 => count(0, 600_000), "ms", Advanced;
+        /// The window `max-restarts` counts over; 0 counts over the whole run.
+        #[serde(default = "default_window_s")]
+        pub window_s: u64 = default_window_s() => count(0, 86_400), "s", Advanced;
+    }
 }
+
+/// A policy is a plain value; the derives [`settings!`] writes leave `Copy` out.
+impl Copy for RestartPolicy {}
 
 /// Restarts count over the last 10 minutes unless a config says otherwise: a week-long run
 /// survives a fault a day, a crash loop still ends the run within minutes.
-fn default_window_s() -> u64 {
+const fn default_window_s() -> u64 {
     600
 }
 
@@ -43,6 +48,14 @@ impl RestartPolicy {
         max_restarts: 0,
         backoff_ms: 0,
         window_s: 0,
+    };
+
+    /// Restarted after a failure, 5 times within the default window, after 1 s at first.
+    const ON_FAILURE: Self = Self {
+        restart: Restart::OnFailure,
+        max_restarts: 5,
+        backoff_ms: 1000,
+        window_s: default_window_s(),
     };
 
     /// The window restarts count over; `None` counts over the whole run.
@@ -68,65 +81,20 @@ impl RestartPolicy {
     }
 }
 
-/// How `lavatube run` supervises its processes (DESIGN §4).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
-pub struct SuperviseConfig {
-    /// Default: on-failure, 5 restarts in 10 minutes, 1 s backoff (it resumes from its newest checkpoint).
-    pub learner: RestartPolicy,
-    /// Default: on-failure, 5 restarts in 10 minutes, 1 s backoff (the sim keeps its last estimates meanwhile).
-    pub estimator: RestartPolicy,
-    /// Default: never (the sim is the run; its failure ends it).
-    pub sim: RestartPolicy,
-    /// How long a process gets to stop on request before SIGTERM, and again before SIGKILL,
-    /// milliseconds. 100 ..= 600000. Default 5000.
-    pub grace_ms: u64,
-}
-
-impl Default for SuperviseConfig {
-    fn default() -> Self {
-        let on_failure = RestartPolicy {
-            restart: Restart::OnFailure,
-            max_restarts: 5,
-            backoff_ms: 1000,
-            window_s: default_window_s(),
-        };
-        Self {
-            learner: on_failure,
-            estimator: on_failure,
-            sim: RestartPolicy {
-                restart: Restart::Never,
-                max_restarts: 0,
-                backoff_ms: 0,
-                window_s: 0,
-            },
-            grace_ms: 5000,
-        }
-    }
-}
-
-impl SuperviseConfig {
-    /// The restart policies.
-    pub(super) fn validate_restarts(&self) -> Result<(), ConfigError> {
-        for (field, p) in [
-            ("supervise.learner", &self.learner),
-            ("supervise.estimator", &self.estimator),
-            ("supervise.sim", &self.sim),
-        ] {
-            if p.backoff_ms > 600_000 || p.max_restarts > 1000 || p.window_s > 86_400 {
-                return Err(invalid(
-                    field,
-                    (p.backoff_ms, p.max_restarts, p.window_s),
-                    "needs backoff-ms <= 600000, max-restarts <= 1000 and window-s <= 86400",
-                ));
-            }
-        }
-        Ok(())
-    }
-
-    /// `grace-ms`, checked apart from the restart policies: see [`Config::validate`](super::Config::validate).
-    pub(super) fn validate_grace(&self) -> Result<(), ConfigError> {
-        count_in("supervise.grace-ms", self.grace_ms, 100, 600_000)
+settings! {
+    /// How `lavatube run` supervises its processes (DESIGN §4).
+    pub struct SuperviseConfig {
+        /// The learners' policy (by default on failure, 5 restarts in 10 minutes, 1 s
+        /// backoff): a learner resumes from its newest checkpoint.
+        pub learner: RestartPolicy = RestartPolicy::ON_FAILURE;
+        /// estimator-proc's policy (by default as the learners'): the sim keeps its last
+        /// estimates meanwhile.
+        pub estimator: RestartPolicy = RestartPolicy::ON_FAILURE;
+        /// The sim's policy (by default never: the sim is the run; its failure ends it).
+        pub sim: RestartPolicy = RestartPolicy::NEVER;
+        /// How long a process gets to stop on request before SIGTERM, and again before
+        /// SIGKILL.
+        pub grace_ms: u64 = 5000 => count(100, 600_000), "ms", Advanced;
     }
 }
 
