@@ -587,7 +587,10 @@ impl<'r, 'a> Supervision<'r, 'a> {
 
     /// Answers one swap request: whether it happened, and what to tell the requester.
     fn swap(&mut self, req: &common::wire::SwapRequest) -> (bool, String) {
-        let slot = PolicySlot::ALL[(req.slot as usize).min(PolicySlot::ALL.len() - 1)];
+        let slot = match requested_slot(req) {
+            Ok(slot) => slot,
+            Err(refusal) => return (false, refusal),
+        };
         let Some(learner) = self
             .members
             .iter_mut()
@@ -613,6 +616,21 @@ impl<'r, 'a> Supervision<'r, 'a> {
     }
 }
 
+/// The slot a swap request names, or its refusal when the index names no slot.
+fn requested_slot(req: &common::wire::SwapRequest) -> Result<PolicySlot, String> {
+    PolicySlot::from_index(req.slot).ok_or_else(|| {
+        let names: Vec<_> = PolicySlot::ALL
+            .iter()
+            .map(|s| format!("{} {}", s.index(), s.name()))
+            .collect();
+        format!(
+            "no policy slot {}: the slots are {}",
+            req.slot,
+            names.join(", ")
+        )
+    })
+}
+
 /// How many restarts `policy` allows and how many of them `recent` has used.
 fn restart_budget(policy: &RestartPolicy, recent: u32) -> String {
     policy.window().map_or_else(
@@ -631,4 +649,23 @@ fn restart_budget(policy: &RestartPolicy, recent: u32) -> String {
 fn stop_all(members: &mut [Supervised], request: &dyn Fn(), grace: Duration) {
     let mut children: Vec<_> = members.iter_mut().map(|m| &mut m.child).collect();
     ladder::stop(&mut children, request, grace);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_swap_for_a_slot_past_the_last_is_refused_not_clamped() {
+        let mut req = common::wire::SwapRequest {
+            slot: 5,
+            ..Default::default()
+        };
+        assert_eq!(requested_slot(&req), Ok(PolicySlot::Sand));
+        req.slot = 6;
+        assert_eq!(
+            requested_slot(&req),
+            Err("no policy slot 6: the slots are 0 general, 1 flat, 2 rough, 3 slope, 4 gravel, 5 sand".into())
+        );
+    }
 }
