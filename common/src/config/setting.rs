@@ -352,14 +352,9 @@ macro_rules! settings {
                 $({
                     let key = $crate::config::setting::key(parent, stringify!($field));
                     if !$crate::config::setting::Setting::rows(&self.$field, &key, out) {
-                        out.push($crate::config::setting::Row {
-                            default: $crate::config::setting::render(&self.$field),
-                            key,
-                            domain: $crate::config::setting::settings!(@domain $($domain)?),
-                            unit: $crate::config::setting::settings!(@unit $($unit)?),
-                            tier: $crate::config::setting::settings!(@tier $($tier)?),
-                            doc: &[$($doc),*],
-                        });
+                        out.push($crate::config::setting::settings!(@row key,
+                            $crate::config::setting::render(&self.$field),
+                            [$($domain, $unit, $tier)?] [$($doc)*]));
                     }
                 })*
                 true
@@ -369,18 +364,23 @@ macro_rules! settings {
                 $({
                     let key = $crate::config::setting::key(parent, stringify!($field));
                     if !<$ty as $crate::config::setting::Setting>::declared_rows(&key, out) {
-                        out.push($crate::config::setting::Row {
-                            default: $crate::config::setting::settings!(@default $ty $(, $default)?),
-                            key,
-                            domain: $crate::config::setting::settings!(@domain $($domain)?),
-                            unit: $crate::config::setting::settings!(@unit $($unit)?),
-                            tier: $crate::config::setting::settings!(@tier $($tier)?),
-                            doc: &[$($doc),*],
-                        });
+                        out.push($crate::config::setting::settings!(@row key,
+                            $crate::config::setting::settings!(@default $ty $(, $default)?),
+                            [$($domain, $unit, $tier)?] [$($doc)*]));
                     }
                 })*
                 true
             }
+        }
+    };
+    (@row $key:ident, $default:expr, [$($domain:expr, $unit:literal, $tier:ident)?] [$($doc:literal)*]) => {
+        $crate::config::setting::Row {
+            default: $default,
+            key: $key,
+            domain: $crate::config::setting::settings!(@domain $($domain)?),
+            unit: $crate::config::setting::settings!(@unit $($unit)?),
+            tier: $crate::config::setting::settings!(@tier $($tier)?),
+            doc: &[$($doc),*],
         }
     };
     (@domain) => { $crate::config::setting::Domain::Form("a section") };
