@@ -14,15 +14,6 @@ const CONFIG: &str = "tests/fixtures/survival.toml";
 /// Long enough for a debug-build learner to start and do an update.
 const PATIENCE: Duration = Duration::from_secs(120);
 
-/// Whether `pid` still runs. A zombie (exited, not yet reaped by whoever adopted it) counts
-/// as gone: it holds no memory, no shared-memory port, no CPU.
-fn running(pid: i32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| {
-        let state = s.rsplit(") ").next().and_then(|rest| rest.chars().next());
-        !matches!(state, Some('Z' | 'X') | None)
-    })
-}
-
 /// Waits for a telemetry tick and a policy of at least `version`; the first tick seen
 /// and the first policy header seen.
 fn until_going(watch: &support::Watch, version: u32) -> (TickHeader, PolicyHeader) {
@@ -76,15 +67,7 @@ fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoi
         0
     );
     let (killed, killed_at) = (Instant::now(), std::time::SystemTime::now());
-    let mut left = children.clone();
-    while !left.is_empty() {
-        assert!(
-            killed.elapsed() < PATIENCE,
-            "still running {left:?} after the launcher died"
-        );
-        left.retain(|(_, pid)| running(*pid));
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    support::until_gone(&children, killed, PATIENCE);
     eprintln!(
         "every child of the killed launcher stopped within {:.2} s",
         killed.elapsed().as_secs_f64()

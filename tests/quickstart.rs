@@ -23,7 +23,7 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, ExitStatus, Stdio};
 use std::time::{Duration, Instant};
 
-#[allow(dead_code)] // this test uses only root() and Watch of the shared helpers
+#[allow(dead_code)] // this test uses only some of the shared helpers
 mod support;
 
 /// The subcommands of the quickstart's `sh` blocks, in order, that this test knows how to
@@ -256,14 +256,6 @@ impl Drop for Cleanup {
     }
 }
 
-/// Whether `pid` still runs; a zombie counts as gone (as in tests/launcher_death.rs).
-fn running(pid: i32) -> bool {
-    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| {
-        let state = s.rsplit(") ").next().and_then(|rest| rest.chars().next());
-        !matches!(state, Some('Z' | 'X') | None)
-    })
-}
-
 /// Waits for a telemetry tick and a policy of at least version 1 (the run is going), while
 /// the launcher still runs.
 fn until_going(watch: &support::Watch, launcher: &mut Started) {
@@ -444,15 +436,7 @@ fn the_quickstart_commands_work_as_written() {
         launcher.at.elapsed().as_secs_f64(),
         TOTAL_STEPS / 1024
     );
-    let mut still = left.clone();
-    while !still.is_empty() {
-        assert!(
-            killed.elapsed() < PATIENCE,
-            "still running {still:?} after the launcher died"
-        );
-        still.retain(|(_, pid)| running(*pid));
-        std::thread::sleep(Duration::from_millis(10));
-    }
+    support::until_gone(&left, killed, PATIENCE);
     drop(watch);
 
     // `lavatube run --resume runs/demo`: goes on to the end of the run.

@@ -227,3 +227,28 @@ pub fn free_port() -> u16 {
     let l = std::net::TcpListener::bind("127.0.0.1:0").expect("bind");
     l.local_addr().expect("addr").port()
 }
+
+/// Whether `pid` still runs. A zombie (exited, not yet reaped by whoever adopted it) counts
+/// as gone: it holds no memory, no shared-memory port, no CPU.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub fn running(pid: i32) -> bool {
+    std::fs::read_to_string(format!("/proc/{pid}/stat")).is_ok_and(|s| {
+        let state = s.rsplit(") ").next().and_then(|rest| rest.chars().next());
+        !matches!(state, Some('Z' | 'X') | None)
+    })
+}
+
+/// Waits until none of `processes` (name, pid) runs, failing once `patience` has passed
+/// since `since`.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub fn until_gone(processes: &[(String, i32)], since: Instant, patience: Duration) {
+    let mut left = processes.to_vec();
+    while !left.is_empty() {
+        assert!(
+            since.elapsed() < patience,
+            "still running {left:?} after the launcher died"
+        );
+        left.retain(|(_, pid)| running(*pid));
+        std::thread::sleep(Duration::from_millis(10));
+    }
+}
