@@ -31,50 +31,28 @@ mod matmul;
 mod mlp;
 mod plan;
 mod shard;
+mod shared;
 #[cfg(test)]
 mod tests;
 mod values;
 
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::Ordering;
 use std::sync::{PoisonError, RwLock};
 
 use common::Rng;
 
-use self::barrier::{Poisoned, SpinBarrier};
+use self::barrier::Poisoned;
 use self::head::ShardSums;
-use self::mlp::Mlp;
-use self::plan::{Net, Plan};
-use self::shard::{ItemOut, Workspace};
+use self::plan::Net;
+use self::shard::Workspace;
+use self::shared::{ItemOut, Shared};
 use super::Learner;
 use super::batch::Batch;
 use super::minibatch::MinibatchStats;
 use super::update::Optimised;
 use crate::LearnerError;
-use crate::adam::{Adam, clip_coef};
+use crate::adam::clip_coef;
 use crate::simd::{sum_of_squares, vectorized};
-
-/// What the workers share for one update.
-struct Shared<'a> {
-    learner: &'a Learner,
-    batch: &'a Batch,
-    /// The actor and the critic, indexed by [`Net`].
-    nets: [Mlp; 2],
-    threads: usize,
-    minibatch: usize,
-    minibatches: usize,
-    shards: usize,
-    plan: Plan,
-    /// Each network's items, `[net][shard]`, written by their workers in phase 1.
-    items: [Vec<RwLock<ItemOut>>; 2],
-    /// Each part's squared gradient norm (f64 bits), written by its owner in phase 2.
-    part_norms: Vec<AtomicU64>,
-    /// Each part's values after the last step, published by its owner in phase 3 when other
-    /// workers compute its network.
-    parts: Vec<RwLock<Vec<f32>>>,
-    adam: &'a Adam,
-    lr: f32,
-    barrier: SpinBarrier,
-}
 
 /// A parameter part a worker owns in phases 2 and 3: its Adam moments and summed gradient.
 struct OwnedPart {
@@ -148,47 +126,6 @@ impl Learner {
 }
 
 impl<'a> Shared<'a> {
-    /// For an update of `learner` on `batch` that trains on `train` transitions, with up to
-    /// `threads` workers (no more than a minibatch has items).
-    fn new(learner: &'a Learner, batch: &'a Batch, train: usize, threads: usize, lr: f32) -> Self {
-        let minibatch = learner.ppo.minibatch_size.min(train);
-        let shards = minibatch.div_ceil(learner.ppo.shard_size.max(1));
-        let threads = threads.clamp(1, 2 * shards);
-        let shape = &learner.shape;
-        let plan = Plan::new(shape, threads);
-        let items = Net::BOTH.map(|net| {
-            (0..shards)
-                .map(|_| RwLock::new(ItemOut::new(net.range(shape).len())))
-                .collect()
-        });
-        Shared {
-            learner,
-            batch,
-            nets: Net::BOTH.map(|net| {
-                Mlp::new(
-                    shape.dense(net == Net::Critic).collect(),
-                    net.range(shape).start,
-                )
-            }),
-            threads,
-            minibatch,
-            // Full minibatches only (as ML-Agents); the remainder differs per epoch's shuffle.
-            minibatches: train / minibatch,
-            shards,
-            items,
-            part_norms: plan.parts.iter().map(|_| AtomicU64::new(0)).collect(),
-            parts: plan
-                .parts
-                .iter()
-                .map(|p| RwLock::new(learner.params[p.range.clone()].to_vec()))
-                .collect(),
-            plan,
-            adam: &learner.adam,
-            lr,
-            barrier: SpinBarrier::new(threads),
-        }
-    }
-
     /// Worker `w`'s part of the update, or the error every worker sees alike.
     fn work(&self, w: usize, mut b_inds: Vec<usize>) -> Result<WorkerOut, LearnerError> {
         let _guard = self.barrier.guard();

@@ -3,28 +3,12 @@
 
 use common::{ACT_DIM, OBS_DIM};
 
-use super::Shared;
 use super::head::{HeadSettings, ShardRows, ShardSums, policy_head, value_head};
 use super::mlp::Activations;
 use super::plan::Net;
+use super::shared::{ItemOut, Shared};
 use crate::ppo::IN;
 use crate::ppo::minibatch::normalise_advantages;
-
-/// An item's output: its network's gradient (over that network's span of the parameters) and
-/// its loss sums.
-pub(super) struct ItemOut {
-    pub grads: Vec<f32>,
-    pub sums: ShardSums,
-}
-
-impl ItemOut {
-    pub(super) fn new(len: usize) -> Self {
-        Self {
-            grads: vec![0.0; len],
-            sums: ShardSums::default(),
-        }
-    }
-}
 
 /// One worker's buffers, allocated once per update for a shard's rows.
 pub(super) struct Workspace {
