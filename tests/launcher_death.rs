@@ -122,12 +122,7 @@ fn a_killed_launcher_leaves_nothing_behind_and_its_run_resumes_from_the_checkpoi
     let (code, said) = resumed.wait_interrupted();
     assert_eq!(code, 130, "{said}");
     assert!(said.contains("(resumed)"), "{said}");
-    let metrics = std::fs::read_to_string(dir.join(run_dir::METRICS_CSV)).expect("metrics");
-    let updates: Vec<u64> = metrics
-        .lines()
-        .skip(1)
-        .filter_map(|l| l.split(',').next()?.parse().ok())
-        .collect();
+    let updates = support::update_numbers(&dir);
     assert!(
         updates.windows(2).all(|w| w[1] > w[0]) && updates.contains(&(saved + 1)),
         "one update sequence across the resume: {updates:?}"

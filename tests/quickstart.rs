@@ -478,12 +478,7 @@ fn the_quickstart_commands_work_as_written() {
                 .starts_with("events.out.tfevents.")),
         "the learner's TensorBoard events are beside metrics.csv:\n{whole}"
     );
-    let metrics = std::fs::read_to_string(dir.join(run_dir::METRICS_CSV)).expect("metrics");
-    let updates: Vec<u64> = metrics
-        .lines()
-        .skip(1)
-        .filter_map(|l| l.split(',').next()?.parse().ok())
-        .collect();
+    let updates = support::update_numbers(&dir);
     assert!(
         updates.len() >= 2 && updates.windows(2).all(|w| w[1] > w[0]),
         "one update sequence across the swap and the resume: {updates:?}"

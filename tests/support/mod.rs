@@ -252,3 +252,15 @@ pub fn until_gone(processes: &[(String, i32)], since: Instant, patience: Duratio
         std::thread::sleep(Duration::from_millis(10));
     }
 }
+
+/// The update numbers of a run directory's metrics.csv, in file order.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub fn update_numbers(run_dir: &Path) -> Vec<u64> {
+    let metrics =
+        std::fs::read_to_string(run_dir.join(common::run_dir::METRICS_CSV)).expect("metrics.csv");
+    metrics
+        .lines()
+        .skip(1)
+        .filter_map(|l| l.split(',').next()?.parse().ok())
+        .collect()
+}
