@@ -226,8 +226,11 @@ impl<T: Setting> Setting for Vec<T> {
         self.iter().try_for_each(|v| v.check(key, domain))
     }
 
+    /// A list of sections lists its items' fields under `key[]`, and keeps its own row too:
+    /// the list's default is a value of its own (SPEC S1's two areas).
     fn rows(&self, key: &str, out: &mut Vec<Row>) -> bool {
-        Self::declared_rows(key, out)
+        T::declared_rows(&format!("{key}[]"), out);
+        false
     }
 
     fn declared_rows(key: &str, out: &mut Vec<Row>) -> bool {
@@ -274,7 +277,8 @@ impl<K: Serialize, V: Setting> Setting for BTreeMap<K, V> {
 /// pub name: Type = default => domain, "unit", Tier;
 /// ```
 ///
-/// A field that is itself a section leaves out `=> domain, "unit", Tier`. The struct gets
+/// `#[derive(Copy)]` (or other derives) after the struct's doc lines adds to the derives the
+/// macro writes. A field that is itself a section leaves out `=> domain, "unit", Tier`. The struct gets
 /// serde's kebab-case names with unknown keys refused. `pub struct Name { … }` fills missing
 /// keys from the declared defaults; `pub struct Name, required { … }` makes a field without
 /// a default required, and a field with one takes it through its own `#[serde(default)]`
@@ -282,6 +286,7 @@ impl<K: Serialize, V: Setting> Setting for BTreeMap<K, V> {
 macro_rules! settings {
     (
         $(#[doc = $sdoc:literal])*
+        $(#[derive($($extra:ident),*)])?
         pub struct $name:ident {
             $(
                 $(#[doc = $doc:literal])*
@@ -290,7 +295,7 @@ macro_rules! settings {
         }
     ) => {
         $(#[doc = $sdoc])*
-        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize $($(, $extra)*)?)]
         #[serde(deny_unknown_fields, rename_all = "kebab-case", default)]
         pub struct $name {
             $($(#[doc = $doc])* pub $field: $ty,)*
@@ -308,6 +313,7 @@ macro_rules! settings {
     };
     (
         $(#[doc = $sdoc:literal])*
+        $(#[derive($($extra:ident),*)])?
         $(#[serde($($sserde:tt)*)])*
         pub struct $name:ident $(<$g:ident>)?, required {
             $(
@@ -318,7 +324,7 @@ macro_rules! settings {
         }
     ) => {
         $(#[doc = $sdoc])*
-        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+        #[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize $($(, $extra)*)?)]
         #[serde(deny_unknown_fields, rename_all = "kebab-case")]
         $(#[serde($($sserde)*)])*
         pub struct $name $(<$g>)? {

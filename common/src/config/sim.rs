@@ -68,6 +68,7 @@ impl AreaKind {
 
 settings! {
     /// An axis-aligned rectangle on the ground (X-Z plane), metres.
+    #[derive(Copy)]
     pub struct Rect, required {
         /// [min, max] along X.
         pub x: [f64; 2] => real(-1000.0, 1000.0), "m", Advanced;
@@ -75,8 +76,6 @@ settings! {
         pub z: [f64; 2] => real(-1000.0, 1000.0), "m", Advanced;
     }
 }
-
-impl Copy for Rect {}
 
 impl Rect {
     pub fn contains(&self, x: f64, z: f64, margin: f64) -> bool {

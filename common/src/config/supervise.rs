@@ -19,6 +19,7 @@ impl Setting for Restart {}
 
 settings! {
     /// One process's restart policy.
+    #[derive(Copy)]
     pub struct RestartPolicy, required {
         /// When the process comes back after it exits: `never`, `on-failure` or `always`.
         pub restart: Restart => choices::<Restart>(), "", Advanced;
@@ -31,9 +32,6 @@ settings! {
         pub window_s: u64 = default_window_s() => count(0, 86_400), "s", Advanced;
     }
 }
-
-/// A policy is a plain value; the derives [`settings!`] writes leave `Copy` out.
-impl Copy for RestartPolicy {}
 
 /// Restarts count over the last 10 minutes unless a config says otherwise: a week-long run
 /// survives a fault a day, a crash loop still ends the run within minutes.

@@ -24,7 +24,7 @@ settings! {
                 x: [-9.0, -7.5],
                 z: [1.5, 5.0],
             },
-        ];
+        ] => form("a list of areas"), "", Essential;
         /// The mixed course (not in the paper): a strip whose robots cross between terrain
         /// kinds; by default between the two areas.
         pub mixed_area: Rect = Rect {
@@ -38,7 +38,7 @@ settings! {
             kind: AreaKind::Rough,
             x: [-6.0, -4.5],
             z: [2.25, 3.25],
-        }];
+        }] => form("a list of areas"), "", Research;
         /// Heightfield cell size.
         pub cell_size: f64 = 0.04 => real(0.005, 0.5), "m", Advanced;
         /// How the physics collides with the floor: `heightfield` (parry's, the grid itself, as
@@ -78,6 +78,7 @@ settings! {
 
 settings! {
     /// One area of a terrain kind: a rectangle on the ground.
+    #[derive(Copy)]
     pub struct Area, required {
         /// The terrain kind: `flat`, `rough`, `slope`, `gravel` or `sand` (not `mixed`, the course).
         pub kind: AreaKind => choices::<AreaKind>(), "", Advanced;
@@ -87,8 +88,6 @@ settings! {
         pub z: [f64; 2] => real(-1000.0, 1000.0), "m", Advanced;
     }
 }
-
-impl Copy for Area {}
 
 impl Area {
     pub fn rect(&self) -> Rect {
