@@ -25,7 +25,7 @@ pub struct SwapArgs {
     /// Start from this checkpoint instead of the run's newest.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
-    /// The policy slot whose learner to replace: general, flat or rough.
+    /// The policy slot whose learner to replace: general, flat, rough, slope, gravel or sand.
     #[arg(long, default_value = "general", value_parser = PolicySlot::parse)]
     pub slot: PolicySlot,
     /// Give up waiting for the launcher's answer after this many seconds.
