@@ -20,20 +20,18 @@ pub struct CheckArgs {
     #[arg(long, value_name = "FIELD")]
     explain: Option<String>,
     /// Print the reference of every field as Markdown (docs/CONFIG.md).
-    #[arg(long, conflicts_with_all = ["config", "explain"])]
+    #[arg(long)]
     reference: bool,
 }
 
+/// Does the one thing asked (the argument group takes exactly one of the three).
 pub fn check_config(args: &CheckArgs) -> anyhow::Result<ExitCode> {
-    if args.reference {
-        print!("{}", reference::markdown());
-        return Ok(ExitCode::SUCCESS);
-    }
     if let Some(path) = &args.config {
         println!("{}: ok ({})", path.display(), validate(path)?);
-    }
-    if let Some(key) = &args.explain {
+    } else if let Some(key) = &args.explain {
         print!("{}", reference::explain(key).map_err(UserError)?);
+    } else {
+        print!("{}", reference::markdown());
     }
     Ok(ExitCode::SUCCESS)
 }

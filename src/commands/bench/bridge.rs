@@ -7,6 +7,7 @@
 //! Then one sim's async env steps/s as a sim host behind the bridge against the same sim on
 //! one host, through the real launchers.
 
+use super::files::{read_json, write_config};
 use crate::runtime::{Binaries, Child, Output, Role};
 use anyhow::{Context, bail};
 use common::config::PolicySlot;
@@ -450,22 +451,15 @@ fn finish(mut c: Child) -> anyhow::Result<()> {
 /// The env steps per second in the `summary.json` of run `run` under `out_dir`.
 fn env_steps_per_s(out_dir: &Path, run: &str) -> anyhow::Result<f64> {
     let path = out_dir.join(run).join(common::run_dir::SUMMARY_JSON);
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    let summary: crate::runtime::Summary = serde_json::from_str(&text)
-        .with_context(|| format!("{} is no run summary", path.display()))?;
-    Ok(summary.env_steps_per_second)
+    Ok(read_json::<crate::runtime::Summary>(&path)?.env_steps_per_second)
 }
 
-/// Makes `dir`, gives `cfg` a fresh shared key there and writes it as `dir/config.toml`, the
-/// config the processes started there read; its path.
+/// Makes `dir`, gives `cfg` a fresh shared key there and writes it as the config the
+/// processes started there read; its path.
 fn keyed_config(dir: &Path, cfg: &mut Config) -> anyhow::Result<PathBuf> {
     std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     cfg.net.key_file = Some(write_key(dir)?);
-    let cfg_path = dir.join("config.toml");
-    std::fs::write(&cfg_path, cfg.to_toml())
-        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
-    Ok(cfg_path)
+    write_config(dir, cfg)
 }
 
 /// A fresh 32-byte shared key in `dir/run.key`.

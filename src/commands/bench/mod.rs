@@ -11,7 +11,7 @@
 
 mod bridge;
 mod config;
-mod json;
+mod files;
 mod reader;
 mod report;
 mod stages;

@@ -574,29 +574,11 @@ mod tests {
 
     fn run(stage: Stage, repeat: usize, rate: f64) -> Row {
         Row {
-            stage: stage.letter(),
-            stage_name: stage.name(),
-            envs: 8,
-            threads: 2,
-            repeat,
-            effective_threads: 2,
-            mode: None,
-            ticks: 100,
-            env_steps: 800,
             wall_s: 1.0,
             decision_steps_per_s: rate,
             physics_steps_per_s: 4.0 * rate,
             episodes: 3,
-            learner_samples_per_s: None,
-            learner_updates: None,
-            policy_lag_versions: None,
-            transport_latency_p50_us: None,
-            transport_latency_p99_us: None,
-            telemetry_ticks_received: None,
-            telemetry_ticks_missed: None,
-            rollout_chunks_received: None,
-            rollout_chunks_missed: None,
-            processes: BTreeMap::new(),
+            ..Row::unmeasured(stage, 8, 2, repeat, None, 100)
         }
     }
 

@@ -4,7 +4,7 @@
 //! the reader's tallies and latencies, the learner's metrics, every process's rusage.
 
 use super::config::{Measurement, Plan, Stage};
-use super::json::read_json;
+use super::files::{read_json, write_config};
 use super::reader::ReaderResult;
 use crate::runtime::{Binaries, Child, Output, Role, Usage, ladder};
 use anyhow::{Context, bail};
@@ -216,11 +216,8 @@ fn spawn(ctx: &Ctx, role: Role, args: &[String], dir: &Path) -> anyhow::Result<C
 /// Runs one measurement in `<bench dir>/<label>/`.
 pub fn measure(ctx: &Ctx, m: &Measurement) -> anyhow::Result<Row> {
     let dir = ctx.dir.join(m.label());
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let cfg = ctx.plan.config_for(m, &dir);
-    let cfg_path = dir.join(run_dir::CONFIG_TOML);
-    std::fs::write(&cfg_path, cfg.to_toml())
-        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    let cfg_path = write_config(&dir, &cfg)?;
     let started = Instant::now();
     let at = Measuring {
         ctx,
@@ -266,16 +263,36 @@ impl Row {
     /// Measurement `m`'s row before anything is measured: what it runs, nothing it measured.
     fn before(plan: &Plan, m: &Measurement) -> Self {
         let ticks = plan.ticks(m.envs);
-        Self {
-            stage: m.stage.letter(),
-            stage_name: m.stage.name(),
-            envs: m.envs,
-            threads: m.threads,
-            repeat: m.repeat,
-            effective_threads: m.threads.min(m.envs),
-            mode: plan.mode(m.stage),
+        Self::unmeasured(
+            m.stage,
+            m.envs,
+            m.threads,
+            m.repeat,
+            plan.mode(m.stage),
             ticks,
-            env_steps: ticks * m.envs as u64,
+        )
+    }
+
+    /// The row of `stage`'s `repeat`-th run at `envs` and `threads`, in `mode`, for `ticks`
+    /// ticks, with nothing measured yet.
+    pub(super) fn unmeasured(
+        stage: Stage,
+        envs: usize,
+        threads: usize,
+        repeat: usize,
+        mode: Option<LearnMode>,
+        ticks: u64,
+    ) -> Self {
+        Self {
+            stage: stage.letter(),
+            stage_name: stage.name(),
+            envs,
+            threads,
+            repeat,
+            effective_threads: threads.min(envs),
+            mode,
+            ticks,
+            env_steps: ticks * envs as u64,
             wall_s: 0.0,
             decision_steps_per_s: 0.0,
             physics_steps_per_s: 0.0,

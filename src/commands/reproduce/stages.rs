@@ -11,7 +11,7 @@ use common::run_dir::{self, learner_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-/// The pipeline's directories and binaries.
+/// The pipeline's base config, its output directory and whether it runs quietly.
 pub(super) struct Pipeline {
     pub(super) base: Config,
     pub(super) out: PathBuf,

@@ -19,7 +19,7 @@ mod protocol;
 pub use echo::{EchoArgs, echo};
 pub use protocol::Kind;
 
-use super::json::read_json;
+use super::files::read_json;
 use crate::runtime::{Child, Output, Role};
 use anyhow::{Context, bail};
 use common::Transition;
