@@ -6,6 +6,19 @@ use std::ffi::OsString;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+/// A count argument: an integer in `lo ..= hi`; `what` names it in the errors ("window").
+pub fn parse_count(s: &str, what: &str, (lo, hi): (u64, u64)) -> Result<usize, String> {
+    let n: u64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{s}` is not a {what} (an integer)"))?;
+    if (lo..=hi).contains(&n) {
+        usize::try_from(n).map_err(|_| format!("{what} {n} is too large"))
+    } else {
+        Err(format!("{what} {n} is out of range {lo}..={hi}"))
+    }
+}
+
 /// Exit code of user errors: bad arguments, config or input files.
 pub const EXIT_USER: u8 = 1;
 
@@ -91,6 +104,19 @@ pub struct JoinArgs {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn counts_are_integers_within_their_bounds() {
+        assert_eq!(parse_count(" 70 ", "window size", (2, 100)), Ok(70));
+        assert_eq!(
+            parse_count("1", "window size", (2, 100)),
+            Err("window size 1 is out of range 2..=100".into())
+        );
+        assert_eq!(
+            parse_count("x", "window size", (2, 100)),
+            Err("`x` is not a window size (an integer)".into())
+        );
+    }
 
     #[test]
     fn endpoints_are_tcp_host_and_port() {

@@ -32,15 +32,7 @@ impl Default for RecordOptions {
 
 /// A trail length: an integer in 2..=10000 (one point draws no line).
 fn parse_trail(s: &str) -> Result<usize, String> {
-    let n: usize = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a trail length (an integer)"))?;
-    if (2..=10_000).contains(&n) {
-        Ok(n)
-    } else {
-        Err(format!("trail {n} is out of range 2..=10000"))
-    }
+    common::cli::parse_count(s, "trail length", (2, 10_000))
 }
 
 #[cfg(test)]

@@ -6,13 +6,18 @@ use super::{AttitudeSource, ConfigError};
 use serde::{Deserialize, Serialize};
 use std::path::PathBuf;
 
+/// The window sizes a rolling window may have, ticks (`windows`, `online-window` and the
+/// command lines that take a window).
+pub const WINDOW_TICKS: (u64, u64) = (2, 100_000);
+
 settings! {
     /// Terrain estimation (SPEC S7) and switching (SPEC S8).
     pub struct EstimatorConfig {
         /// Rolling-window sizes analysed offline (SPEC S7); at least one.
-        pub windows: Vec<usize> = vec![10, 20, 40, 70] => count(2, 100_000), "ticks", Advanced;
+        pub windows: Vec<usize> = vec![10, 20, 40, 70]
+            => count(WINDOW_TICKS.0, WINDOW_TICKS.1), "ticks", Advanced;
         /// Window used online (70: the paper's best).
-        pub online_window: usize = 70 => count(2, 100_000), "ticks", Advanced;
+        pub online_window: usize = 70 => count(WINDOW_TICKS.0, WINDOW_TICKS.1), "ticks", Advanced;
         /// Ticks dropped at the start of each series (SPEC S7).
         pub warmup_ticks: usize = 100 => count(0, 1_000_000), "ticks", Advanced;
         /// Mixture components (terrain classes).

@@ -25,7 +25,9 @@ mod terrain;
 #[cfg(test)]
 mod tests;
 
-pub use estimator::{Covariance, EstimatorConfig, KindsFit, MixtureFeature, WindowFeature};
+pub use estimator::{
+    Covariance, EstimatorConfig, KindsFit, MixtureFeature, WINDOW_TICKS, WindowFeature,
+};
 pub use external::ExternalConfig;
 pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};
 pub use model_file::{OfflineKinds, OfflineMixture};

@@ -79,15 +79,7 @@ fn parse_signal(s: &str) -> Result<AttitudeSource, String> {
     }
 }
 
-/// A window size: an integer in 2..=100000 (the config's range).
+/// A window size, in the config's range ([`common::config::WINDOW_TICKS`]).
 pub(super) fn parse_window(s: &str) -> Result<usize, String> {
-    let w: usize = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{s}` is not a window size (an integer)"))?;
-    if (2..=100_000).contains(&w) {
-        Ok(w)
-    } else {
-        Err(format!("window {w} is out of range 2..=100000"))
-    }
+    common::cli::parse_count(s, "window size", common::config::WINDOW_TICKS)
 }
