@@ -70,7 +70,7 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         ("f-eval/general-rough-0.toml", "roughness-scale = 1.0"),
         ("f-eval/general-rough-0.toml", "episodes = \"course\""),
         ("c-collect/traces.toml", "roughness-scale = 0.8"),
-        ("c-collect/traces.toml", "rough-envs = 3"),
+        ("c-collect/traces.toml", "[sim.envs]\nflat = 3\nrough = 3\n"),
     ] {
         let text = std::fs::read_to_string(out.join(stage_cfg)).expect(stage_cfg);
         assert!(text.contains(ground), "{stage_cfg}: {text}");

@@ -166,9 +166,8 @@ pub const EVENT_PLACED: u8 = 16;
 #[type_name("lavatube.EnvTick.v4")]
 pub struct EnvTick {
     pub env: u32,
-    /// True terrain under the robot (`AreaKind::code`: 0 flat, 1 rough, 3 slope, 4 gravel,
-    /// 5 sand):
-    /// the env's area, or on the mixed course the part it is on.
+    /// True terrain under the robot (`AreaKind::code`): the env's area, or on the mixed course
+    /// the part it is on.
     pub area: u8,
     /// Bits `EVENT_*`.
     pub events: u8,
@@ -346,7 +345,7 @@ pub struct GymEnvStep {
     pub truncated: u8,
     /// 1 when the episode ended at its target.
     pub success: u8,
-    /// The ground under the robot: `AreaKind::code` (0 flat, 1 rough, 3 slope, 4 gravel, 5 sand).
+    /// The ground under the robot: `AreaKind::code`.
     pub area: u8,
     pub env: u32,
 }

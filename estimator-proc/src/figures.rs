@@ -14,24 +14,13 @@ use std::path::Path;
 
 pub mod kinds;
 
-const FLAT: RGBColor = RGBColor(31, 119, 180);
-const ROUGH: RGBColor = RGBColor(214, 39, 40);
-const MIXED: RGBColor = RGBColor(148, 103, 189);
-const SLOPE: RGBColor = RGBColor(140, 86, 75);
-const GRAVEL: RGBColor = RGBColor(127, 127, 127);
-const SAND: RGBColor = RGBColor(219, 186, 92);
 use common::plot::FONT;
 const GRID: RGBColor = RGBColor(242, 242, 242);
 
+/// The area's colour (`AreaKind::colour`).
 fn area_color(area: AreaKind) -> RGBColor {
-    match area {
-        AreaKind::Flat => FLAT,
-        AreaKind::Rough => ROUGH,
-        AreaKind::Mixed => MIXED,
-        AreaKind::Slope => SLOPE,
-        AreaKind::Gravel => GRAVEL,
-        AreaKind::Sand => SAND,
-    }
+    let [r, g, b] = area.colour();
+    RGBColor(r, g, b)
 }
 
 /// Registers the bundled font once per process.

@@ -54,7 +54,7 @@ class VectorEnv(gymnasium.vector.VectorEnv):
     """The envs of one lavatube run, stepped together.
 
     config: a lavatube config file, started as a new run, with `overrides` laid over it by
-      section (e.g. `{"sim": {"flat-envs": 8}, "run": {"out-dir": "/tmp/runs"}}`); or run_id:
+      section (e.g. `{"sim": {"envs": {"flat": 8}}, "run": {"out-dir": "/tmp/runs"}}`); or run_id:
       a run already serving gym clients (`lavatube run --config configs/gym.toml`), joined.
     timeout: seconds to wait for the sim to come up and for each answer.
     bin_dir: where the `lavatube` binaries are; default `$LAVATUBE_BIN_DIR`, else `PATH`.
@@ -91,8 +91,8 @@ class VectorEnv(gymnasium.vector.VectorEnv):
         self._actions = np.zeros((self.num_envs, wire.ACT_DIM), dtype=np.float32)
 
     def reset(self, *, seed: int | list[int] | None = None, options: dict | None = None):
-        """Every env's first observation, and `info["area"]` (the ground's code: 0 flat,
-        1 rough, 3 slope, 4 gravel, 5 sand): rebuilt from
+        """Every env's first observation, and `info["area"]` (the ground's code, from the
+        terrain-kinds table of docs/CONFIG.md): rebuilt from
         `seed` (an int s, or the per-env list [s, s+1, …] Gymnasium makes of it), or with
         none each env's next episode from a new pose. `options` is unused."""
         seed = _one_seed(seed, self.num_envs)
@@ -142,16 +142,12 @@ def _one_seed(seed, envs: int) -> int | None:
                      f"[s, s+1, …], not {seed!r}")
 
 
-#: The areas an env can drive in: the terrain kinds, then the mixed course.
-AREAS = ("flat", "rough", "slope", "gravel", "sand", "mixed")
-
-
 class Env(gymnasium.Env):
     """One env of lavatube's simulator as a `gymnasium.Env` (a one-env `VectorEnv` underneath).
 
-    config, overrides: as `VectorEnv`'s; area: where the env drives, `flat`, `rough`,
-    `slope`, `gravel`, `sand` (the last three need an area of their kind in the config) or
-    `mixed`.
+    config, overrides: as `VectorEnv`'s; area: where the env drives, a terrain kind (`flat`,
+    `rough`, or another kind with an area in the config) or `mixed`; the launcher refuses
+    any other name before the run starts.
     An episode's last step returns its last observation; the next `reset()` returns the next
     episode's first (which the sim has already begun, from where the robot stands, SPEC S3).
     """
@@ -161,10 +157,8 @@ class Env(gymnasium.Env):
     def __init__(self, config: str | os.PathLike, *, area: str = "flat",
                  overrides: dict[str, dict] | None = None, timeout: float = 60.0,
                  bin_dir: str | os.PathLike | None = None):
-        if area not in AREAS:
-            raise ValueError(f"area {area!r} is none of {', '.join(AREAS)}")
         overrides = {section: dict(values) for section, values in (overrides or {}).items()}
-        overrides.setdefault("sim", {}).update({f"{a}-envs": int(a == area) for a in AREAS})
+        overrides.setdefault("sim", {})["envs"] = {area: 1}
         self._vec = VectorEnv(config, overrides=overrides, timeout=timeout, bin_dir=bin_dir)
         self.observation_space = self._vec.single_observation_space
         self.action_space = self._vec.single_action_space
@@ -195,6 +189,14 @@ class Env(gymnasium.Env):
         self._vec.close()
 
 
+def _toml(value) -> str:
+    """A value as TOML: a dict as an inline table, anything else as JSON (which TOML reads
+    alike for strings, numbers, booleans and lists)."""
+    if isinstance(value, dict):
+        return "{ " + ", ".join(f"{json.dumps(str(k))} = {_toml(v)}" for k, v in value.items()) + " }"
+    return json.dumps(value)
+
+
 class _Launcher:
     """`lavatube run` on `config` made a gym run, started by this process."""
 
@@ -208,7 +210,7 @@ class _Launcher:
             tables.setdefault(section, {}).update(values)
         lines = [f"extends = {json.dumps(str(config.resolve()))}"]
         for section, values in tables.items():
-            lines += [f"[{section}]"] + [f"{k} = {json.dumps(v)}" for k, v in values.items()]
+            lines += [f"[{section}]"] + [f"{k} = {_toml(v)}" for k, v in values.items()]
         overlay.write_text("\n".join(lines) + "\n")
         bin_dir = bin_dir or os.environ.get("LAVATUBE_BIN_DIR")
         launcher = str(Path(bin_dir) / "lavatube") if bin_dir else "lavatube"

@@ -37,7 +37,7 @@ Tick = _record("Tick", wire.TickHeader, wire.EnvTick, doc="""One telemetry tick.
 
 TickHeader's fields (tick, env_steps, policy_version, envs, episodes, successes, sent_ns,
 reach_ticks, reach_ticks_sq), then an array per EnvTick field with one row per env: env,
-area (0 flat, 1 rough, 3 slope, 4 gravel, 5 sand), events (EVENT_* bits), slot, pos (n, 3), euler (n, 3),
+area (the ground's code, from the terrain-kinds table of docs/CONFIG.md), events (EVENT_* bits), slot, pos (n, 3), euler (n, 3),
 sin_pitch, reward, target (n, 2), imu_euler (n, 3), imu_sin_pitch (NaN when the sim runs no IMU) and
 command (n, 2), the wheel commands in rad/s.""")
 

@@ -47,8 +47,7 @@ def test_the_single_env_view_passes_gymnasiums_env_checker(tmp_path, bin_dir):
 
 def test_random_steps_match_sim_proc_replaying_the_same_actions(tmp_path, bin_dir):
     steps, seed = 1000, 5
-    envs = lavatube.gym.VectorEnv(GYM, overrides=overrides(tmp_path, **{"rough-envs": 4,
-                                                                          "flat-envs": 4}),
+    envs = lavatube.gym.VectorEnv(GYM, overrides=overrides(tmp_path, envs={"flat": 4, "rough": 4}),
                                   timeout=TIMEOUT_S, bin_dir=bin_dir)
     try:
         assert envs.num_envs == 8 and envs.metadata["autoreset_mode"].name == "SAME_STEP"
@@ -81,7 +80,7 @@ def test_random_steps_match_sim_proc_replaying_the_same_actions(tmp_path, bin_di
         for t, a in enumerate(actions):
             out.writerows([t, i, repr(float(l)), repr(float(r))] for i, (l, r) in enumerate(a))
     config = tmp_path / "replay.toml"
-    config.write_text(f'extends = "{GYM}"\n[sim]\nflat-envs = 4\nrough-envs = 4\nthreads = 1\n')
+    config.write_text(f'extends = "{GYM}"\n[sim]\nenvs = {{ flat = 4, rough = 4 }}\nthreads = 1\n')
     subprocess.run([bin_dir / "sim-proc", "--config", config, "--seed", str(seed),
                     "--controller", "replay", "--actions", tmp_path / "actions.csv",
                     "--steps", str(steps), "--telemetry", tmp_path / "telemetry.csv",

@@ -16,7 +16,6 @@ use crate::options::RecordOptions;
 use crate::pose::unity_quaternion;
 use crate::sample::{EstimateSample, RobotSample};
 use crate::trail::Trails;
-use common::config::AreaKind;
 use common::terrain::Terrain;
 use rerun::{AsComponents, RecordingStream};
 use std::path::{Path, PathBuf};
@@ -127,7 +126,7 @@ impl Recording {
         }
         let half = cfg.sim.robot.chassis_half_extents.map(|v| v as f32);
         for env in 0..self.envs {
-            let color = area_color(cfg.sim.area_of(env));
+            let color = cfg.sim.area_of(env).colour();
             let marker = rerun::Points3D::new([[0.0, MARKER_HEIGHT, 0.0]])
                 .with_radii([MARKER_RADIUS])
                 .with_colors([color])
@@ -278,17 +277,5 @@ fn log_error(entity: &str, e: &rerun::RecordingStreamError) -> RecorderError {
     RecorderError::Log {
         entity: entity.to_string(),
         reason: e.to_string(),
-    }
-}
-
-/// A robot's colour by the area its env lives in.
-fn area_color(area: AreaKind) -> [u8; 3] {
-    match area {
-        AreaKind::Flat => [66, 135, 245],
-        AreaKind::Rough => [235, 120, 40],
-        AreaKind::Mixed => [90, 180, 90],
-        AreaKind::Slope => [140, 86, 75],
-        AreaKind::Gravel => [150, 150, 150],
-        AreaKind::Sand => [219, 186, 92],
     }
 }

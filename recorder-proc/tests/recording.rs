@@ -66,7 +66,7 @@ impl Decoded {
 
 fn config(envs: usize) -> common::Config {
     let mut cfg = common::Config::default();
-    cfg.sim.flat_envs = envs;
+    cfg.sim.only_in(common::AreaKind::Flat, envs);
     cfg
 }
 

@@ -8,7 +8,7 @@
 //! the wall clock; "cores busy" (CPU time over wall time) shows how well the threads scale.
 //! One env runs on one thread whatever the setting.
 
-use common::config::SimConfig;
+use common::config::{AreaKind, SimConfig};
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use sim_proc::controllers::{Controller, GoToController};
 use sim_proc::terrain::Terrain;
@@ -35,8 +35,7 @@ fn decision_steps(c: &mut Criterion) {
     for envs in [1usize, 8, 64] {
         for threads in [1usize, 2] {
             let cfg = SimConfig {
-                flat_envs: 0,
-                rough_envs: envs,
+                envs: [(AreaKind::Flat, 0), (AreaKind::Rough, envs)].into(),
                 threads,
                 ..SimConfig::default()
             };

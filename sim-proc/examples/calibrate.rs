@@ -4,7 +4,7 @@
 //! `cargo run --release -p sim-proc --example calibrate [-- CONFIG.toml [TICKS]]`
 
 use common::Config;
-use common::config::SimConfig;
+use common::config::{AreaKind, SimConfig};
 use sim_proc::controllers::GoToController;
 use sim_proc::standalone::drive;
 use sim_proc::terrain::Terrain;
@@ -41,8 +41,11 @@ fn main() -> anyhow::Result<()> {
     writeln!(out, "|---|{}---|", "---|".repeat(windows.len()))?;
     for (k, (name, target)) in targets.iter().enumerate() {
         let sim = SimConfig {
-            flat_envs: if k == 0 { 4 } else { 0 },
-            rough_envs: if k == 1 { 4 } else { 0 },
+            envs: [
+                (AreaKind::Flat, if k == 0 { 4 } else { 0 }),
+                (AreaKind::Rough, if k == 1 { 4 } else { 0 }),
+            ]
+            .into(),
             ..cfg.sim.clone()
         };
         let terrain = SharedTerrain::new(Terrain::build(&sim.terrain)?, sim.terrain.collider);

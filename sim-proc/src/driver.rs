@@ -202,14 +202,15 @@ mod tests {
     use crate::controllers::PolicyController;
     use crate::env::SharedTerrain;
     use crate::terrain::Terrain;
-    use common::config::SimConfig;
+    use common::config::{AreaKind, SimConfig};
     use common::{Policy, PolicyLayout, Rng};
 
     /// The transitions of `ticks` steps of 2 flat and 2 rough envs under one stochastic
     /// policy, on `threads` sim threads.
     fn record(threads: usize, ticks: usize) -> Vec<Transition> {
         let mut cfg = SimConfig::default();
-        (cfg.flat_envs, cfg.rough_envs, cfg.threads) = (2, 2, threads);
+        cfg.spread(&[AreaKind::Flat, AreaKind::Rough], 2);
+        cfg.threads = threads;
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
         let mut fleet = Fleet::new(&cfg, &terrain, 9);
         let layout = PolicyLayout::new(OBS_DIM, &[16], ACT_DIM);

@@ -520,7 +520,7 @@ mod tests {
     #[test]
     fn non_finite_physics_ends_the_episode_and_respawns_only_that_env() {
         let cfg = SimConfig {
-            flat_envs: 2,
+            envs: [(AreaKind::Flat, 2)].into(),
             ..SimConfig::default()
         };
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
@@ -654,8 +654,7 @@ mod tests {
             // percent between steppings (the IMU's runs 2-5 % slower), not by the 10 % a
             // sample of 4 robots can stray.
             let mut cfg = SimConfig {
-                flat_envs: 0,
-                rough_envs: 8,
+                envs: [(AreaKind::Flat, 0), (AreaKind::Rough, 8)].into(),
                 threads: 1,
                 ..SimConfig::default()
             };
@@ -718,8 +717,11 @@ mod tests {
     fn the_imu_filter_tracks_the_true_pitch_and_its_rolling_std_per_area() {
         for (rough, most_pitch_deg) in [(false, 0.5), (true, 2.0)] {
             let mut cfg = SimConfig {
-                flat_envs: usize::from(!rough),
-                rough_envs: usize::from(rough),
+                envs: [
+                    (AreaKind::Flat, usize::from(!rough)),
+                    (AreaKind::Rough, usize::from(rough)),
+                ]
+                .into(),
                 ..SimConfig::default()
             };
             cfg.observation = AttitudeSource::Imu;
@@ -758,8 +760,7 @@ mod tests {
         // (`sim.imu.simulate`, or `estimator.signal = "imu"`) leaves physics and
         // observations bit-identical, and only then are the filtered angles there.
         let mut cfg = SimConfig {
-            flat_envs: 0,
-            rough_envs: 1,
+            envs: [(AreaKind::Flat, 0), (AreaKind::Rough, 1)].into(),
             ..SimConfig::default()
         };
         step_as_the_imu_needs(&mut cfg);
@@ -785,8 +786,7 @@ mod tests {
     #[test]
     fn a_mixed_course_env_reports_the_ground_under_it() {
         let cfg = SimConfig {
-            flat_envs: 0,
-            mixed_envs: 16,
+            envs: [(AreaKind::Flat, 0), (AreaKind::Mixed, 16)].into(),
             ..SimConfig::default()
         };
         let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
@@ -812,8 +812,7 @@ mod tests {
     #[test]
     fn a_mixed_course_env_meets_the_friction_of_the_ground_under_it() {
         let mut cfg = SimConfig {
-            flat_envs: 0,
-            mixed_envs: 16,
+            envs: [(AreaKind::Flat, 0), (AreaKind::Mixed, 16)].into(),
             ..SimConfig::default()
         };
         cfg.terrain.mixed_parts[0].kind = AreaKind::Slope;

@@ -270,8 +270,7 @@ mod tests {
     #[test]
     fn a_gym_client_steps_the_envs_as_the_sim_alone_does_with_same_step_autoreset() {
         let mut cfg = SimConfig {
-            flat_envs: 2,
-            rough_envs: 1,
+            envs: [(common::AreaKind::Flat, 2), (common::AreaKind::Rough, 1)].into(),
             threads: 1,
             ..SimConfig::default()
         };

@@ -209,7 +209,7 @@ mod tests {
     #[test]
     fn the_summary_counts_stalls() {
         let mut cfg = SimConfig {
-            flat_envs: 2,
+            envs: [(common::AreaKind::Flat, 2)].into(),
             threads: 1,
             ..SimConfig::default()
         };

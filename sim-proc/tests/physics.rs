@@ -130,8 +130,7 @@ fn opposite_commands_turn_at_the_kinematic_yaw_rate() {
 
 fn rough_cfg(envs: usize) -> SimConfig {
     SimConfig {
-        flat_envs: 0,
-        rough_envs: envs,
+        envs: [(AreaKind::Flat, 0), (AreaKind::Rough, envs)].into(),
         ..SimConfig::default()
     }
 }
@@ -192,8 +191,7 @@ fn pitch_varies_more_on_rough_than_flat_ground() {
     // SPEC S7's protocol: 500 ticks per env, the first 100 dropped, window 70.
     let flat = mean_rolling_std(
         &SimConfig {
-            flat_envs: 4,
-            rough_envs: 0,
+            envs: [(AreaKind::Flat, 4), (AreaKind::Rough, 0)].into(),
             ..SimConfig::default()
         },
         500,
@@ -209,8 +207,7 @@ fn pitch_varies_more_on_rough_than_flat_ground() {
 fn same_seed_gives_identical_telemetry_whatever_the_thread_count() {
     let record = |threads: usize| {
         let cfg = SimConfig {
-            flat_envs: 2,
-            rough_envs: 2,
+            envs: [(AreaKind::Flat, 2), (AreaKind::Rough, 2)].into(),
             threads,
             ..SimConfig::default()
         };

@@ -44,8 +44,7 @@ fn slope(
     terrain.slope.friction = friction;
     terrain.collider = floor;
     let cfg = SimConfig {
-        flat_envs: 0,
-        slope_envs: 1,
+        envs: [(AreaKind::Flat, 0), (AreaKind::Slope, 1)].into(),
         terrain,
         robot,
         ..SimConfig::default()

@@ -25,7 +25,8 @@ pub struct SwapArgs {
     /// Start from this checkpoint instead of the run's newest.
     #[arg(long)]
     pub checkpoint: Option<PathBuf>,
-    /// The policy slot whose learner to replace: general, flat, rough, slope, gravel or sand.
+    /// The policy slot whose learner to replace: `general` or a terrain kind's (`flat`,
+    /// `rough`, ...).
     #[arg(long, default_value = "general", value_parser = PolicySlot::parse)]
     pub slot: PolicySlot,
     /// Give up waiting for the launcher's answer after this many seconds.

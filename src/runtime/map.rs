@@ -9,10 +9,10 @@ use std::path::Path;
 /// The areas the sim's envs use, named as the map labels them.
 fn areas(sim: &SimConfig) -> Vec<(&'static str, Rect)> {
     let t = &sim.terrain;
-    sim.env_counts()
-        .into_iter()
-        .filter(|(_, n)| *n > 0)
-        .filter_map(|(area, _)| match area {
+    sim.envs
+        .iter()
+        .filter(|(_, n)| **n > 0)
+        .filter_map(|(area, _)| match *area {
             AreaKind::Mixed => Some(("mixed course", t.mixed_area)),
             kind => t.area(kind).map(|r| (kind.name(), r)),
         })

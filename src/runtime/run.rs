@@ -9,7 +9,7 @@ use super::swap::{SwapContext, learner_args, swap_learner};
 use super::{Binaries, Event, Host, Lines, Progress, Role, Spec, Summary, Supervised, ladder, say};
 use crate::error::UserError;
 use anyhow::Context;
-use common::config::{PolicySlot, RestartPolicy};
+use common::config::{AreaKind, PolicySlot, RestartPolicy};
 use common::ipc::{self, Bus, Receiver, SwapServer};
 use common::wire::{EnvTick, PolicyHeader, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
 use common::{Config, run_dir};
@@ -437,7 +437,8 @@ impl<'r, 'a> Supervision<'r, 'a> {
             bus,
             members,
             progress: Progress {
-                both_areas: (sim.flat_envs > 0 && sim.rough_envs > 0) || sim.mixed_envs > 0,
+                both_areas: (sim.envs_in(AreaKind::Flat) > 0 && sim.envs_in(AreaKind::Rough) > 0)
+                    || sim.envs_in(AreaKind::Mixed) > 0,
                 ..Progress::default()
             },
             failed: None,

@@ -114,6 +114,7 @@ pub fn swap_learner(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::config::AreaKind;
 
     #[test]
     fn only_learner_sections_may_change() {
@@ -122,7 +123,7 @@ mod tests {
         new.ppo.learning_rate = 1e-4;
         new.supervise.grace_ms = 1000;
         assert!(fixed_sections_differ(&running, &new).is_empty());
-        new.sim.flat_envs += 1;
+        *new.sim.envs.entry(AreaKind::Flat).or_default() += 1;
         new.run.seed += 1;
         assert_eq!(fixed_sections_differ(&running, &new), ["[run]", "[sim]"]);
     }

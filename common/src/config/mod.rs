@@ -9,6 +9,7 @@
 mod estimator;
 mod external;
 mod imu;
+mod kinds;
 mod model_file;
 mod net;
 mod ppo;
@@ -30,13 +31,14 @@ pub use estimator::{
 };
 pub use external::ExternalConfig;
 pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};
+pub use kinds::{Acting, AreaKind, PolicySlot};
 pub use model_file::{OfflineKinds, OfflineMixture};
 pub use net::{MIN_KEY_BYTES, NetConfig};
 pub use ppo::{PpoConfig, PpoEngine};
 pub use reproduce::ReproduceConfig;
 pub use robot::{RobotConfig, WheelModel, WheelShape};
-pub use run::{Acting, LearnMode, PolicySlot, RunConfig};
-pub use sim::{AreaKind, Rect, SimConfig};
+pub use run::{LearnMode, RunConfig};
+pub use sim::{Rect, SimConfig};
 pub use supervise::{Restart, RestartPolicy, SuperviseConfig};
 pub use task::{EpisodeStart, TaskConfig};
 pub use terrain::{
@@ -45,6 +47,7 @@ pub use terrain::{
 
 use serde::de::DeserializeOwned;
 use setting::Setting;
+use std::collections::HashSet;
 use std::path::{Path, PathBuf};
 
 /// A configuration problem, always naming the field or file it is about.
@@ -86,6 +89,7 @@ impl Config {
     pub fn load(path: &Path) -> Result<Self, ConfigError> {
         let text = read_text(path)?;
         let table: toml::Table = parse_toml(&text, path)?;
+        refuse_replaced_keys(&table)?;
         let mut cfg: Self = if table.contains_key(EXTENDS) {
             let merged = extended(table, path, 0)?;
             toml::Value::Table(merged)
@@ -124,6 +128,7 @@ impl Config {
 
     /// Parses TOML text (no validation); `path` only labels errors.
     pub fn parse(text: &str, path: &Path) -> Result<Self, ConfigError> {
+        refuse_replaced_keys(&parse_toml(text, path)?)?;
         parse_toml(text, path)
     }
 
@@ -159,6 +164,39 @@ impl Config {
     }
 }
 
+/// Keys an older release read that a table replaced: `sim.flat-envs = 4` and its kin are
+/// refused with the line that replaces them (`envs = { flat = 4, … }` under `[sim]`).
+fn refuse_replaced_keys(table: &toml::Table) -> Result<(), ConfigError> {
+    let Some(toml::Value::Table(sim)) = table.get("sim") else {
+        return Ok(());
+    };
+    let old: Vec<(&str, &toml::Value)> = sim
+        .iter()
+        .filter_map(|(key, n)| {
+            let area = key.strip_suffix("-envs")?;
+            AreaKind::ALL
+                .iter()
+                .any(|a| a.name() == area)
+                .then_some((area, n))
+        })
+        .collect();
+    let Some((first, n)) = old.first() else {
+        return Ok(());
+    };
+    let table: Vec<String> = old
+        .iter()
+        .map(|(area, n)| format!("{area} = {n}"))
+        .collect();
+    Err(ConfigError::Invalid {
+        field: format!("sim.{first}-envs"),
+        value: n.to_string(),
+        reason: format!(
+            "env counts are one table: write `envs = {{ {} }}` under [sim]",
+            table.join(", ")
+        ),
+    })
+}
+
 /// The top-level key naming the config a config file starts from.
 const EXTENDS: &str = "extends";
 
@@ -184,16 +222,23 @@ fn extended(mut table: toml::Table, path: &Path, depth: usize) -> Result<toml::T
     }
     let base_path = path.parent().unwrap_or(Path::new("")).join(name);
     let text = read_text(&base_path)?;
-    let mut merged = extended(parse_toml(&text, &base_path)?, &base_path, depth + 1)?;
-    overlay(&mut merged, table);
+    let base_table = parse_toml(&text, &base_path)?;
+    refuse_replaced_keys(&base_table)?;
+    let mut merged = extended(base_table, &base_path, depth + 1)?;
+    let fields: HashSet<String> = reference::rows().into_iter().map(|r| r.key).collect();
+    overlay(&mut merged, table, "", &fields);
     Ok(merged)
 }
 
-/// Lays `top` over `base`.
-fn overlay(base: &mut toml::Table, top: toml::Table) {
+/// Lays `top` over `base`: a section merges key by key; a field, a table-valued one
+/// (`sim.envs`, `run.frozen`) included, replaces the base's value.
+fn overlay(base: &mut toml::Table, top: toml::Table, prefix: &str, fields: &HashSet<String>) {
     for (key, value) in top {
+        let path = setting::key(prefix, &key);
         match (base.get_mut(&key), value) {
-            (Some(toml::Value::Table(b)), toml::Value::Table(t)) => overlay(b, t),
+            (Some(toml::Value::Table(b)), toml::Value::Table(t)) if !fields.contains(&path) => {
+                overlay(b, t, &path, fields);
+            }
             (_, value) => {
                 base.insert(key, value);
             }

@@ -1,8 +1,8 @@
 //! The field reference, made from the declarations ([`super::setting::settings!`]):
 //! docs/CONFIG.md and `lavatube check-config --explain FIELD`.
 
-use super::Config;
 use super::setting::{Row, Setting, Tier};
+use super::{AreaKind, Config, PolicySlot};
 
 /// Every field of the config with its default, accepted values, unit, tier and doc, in
 /// declaration order.
@@ -103,6 +103,32 @@ pub fn markdown() -> String {
         count(Tier::Advanced),
         count(Tier::Research)
     ));
+    md.push_str(&kinds_table());
+    md
+}
+
+/// The areas and slots that `sim.envs`, `sim.terrain.areas`, `run.learners` and the wire
+/// name, from the one table of terrain kinds.
+fn kinds_table() -> String {
+    let mut md = String::from(
+        "\n## Terrain kinds\n\nThe areas `sim.envs` and `sim.terrain.areas` name, their code in \
+         telemetry, track and CSV files (`area`, the estimator's class), and each kind's policy \
+         slot (`run.learners`, its index on the wire; `general` is 0) and specialist's label in \
+         reports. Declared once, in `common/src/config/kinds.rs`.\n\n\
+         | area | code | policy slot | slot index | specialist | colour |\n|---|---:|---|---:|---|---|\n",
+    );
+    for area in AreaKind::ALL {
+        let slot = PolicySlot::for_class(area.code());
+        let [r, g, b] = area.colour();
+        md.push_str(&format!(
+            "| `{}` | {} | {} | {} | {} | `#{r:02x}{g:02x}{b:02x}` |\n",
+            area.name(),
+            area.code(),
+            slot.map_or("-".into(), |s| format!("`{}`", s.name())),
+            slot.map_or("-".into(), |s| s.index().to_string()),
+            area.model().unwrap_or("- (the course)"),
+        ));
+    }
     md
 }
 

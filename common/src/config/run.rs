@@ -2,7 +2,7 @@
 
 use super::range::invalid;
 use super::setting::{Setting, choices, count, flag, form, real, settings};
-use super::{AreaKind, ConfigError};
+use super::{Acting, ConfigError, PolicySlot};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -54,136 +54,6 @@ settings! {
         /// Start estimator-proc, which classifies the terrain online (SPEC S8); false gives
         /// its CPU to the sim where no env switches and every learner is `general`.
         pub estimator: bool = true => flag(), "", Advanced;
-    }
-}
-
-/// A policy slot of the sim's policy set (DESIGN §5): what a learner fills and an env acts with.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum PolicySlot {
-    General,
-    Flat,
-    Rough,
-    Slope,
-    Gravel,
-    Sand,
-}
-
-impl Setting for PolicySlot {}
-
-impl PolicySlot {
-    pub const ALL: [PolicySlot; 6] = [
-        PolicySlot::General,
-        PolicySlot::Flat,
-        PolicySlot::Rough,
-        PolicySlot::Slope,
-        PolicySlot::Gravel,
-        PolicySlot::Sand,
-    ];
-
-    /// The slot's index on the wire (`PolicyHeader::slot`, `Transition::slot`).
-    pub fn index(self) -> usize {
-        self as usize
-    }
-
-    /// The slot at a wire index (`PolicySlot::index`); `None` for an index no slot has.
-    pub fn from_index(index: u32) -> Option<Self> {
-        usize::try_from(index)
-            .ok()
-            .and_then(|i| Self::ALL.get(i).copied())
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            PolicySlot::General => "general",
-            PolicySlot::Flat => "flat",
-            PolicySlot::Rough => "rough",
-            PolicySlot::Slope => "slope",
-            PolicySlot::Gravel => "gravel",
-            PolicySlot::Sand => "sand",
-        }
-    }
-
-    /// The process (and shared-memory node) name of the slot's learner.
-    pub fn learner_name(self) -> &'static str {
-        match self {
-            PolicySlot::General => "learner",
-            PolicySlot::Flat => "learner-flat",
-            PolicySlot::Rough => "learner-rough",
-            PolicySlot::Slope => "learner-slope",
-            PolicySlot::Gravel => "learner-gravel",
-            PolicySlot::Sand => "learner-sand",
-        }
-    }
-
-    /// Parses a slot name (`general`, `flat`, `rough`, `slope`, `gravel`, `sand`), for command lines.
-    pub fn parse(name: &str) -> Result<Self, String> {
-        Self::ALL
-            .into_iter()
-            .find(|s| s.name() == name)
-            .ok_or_else(|| {
-                format!(
-                    "unknown policy slot `{name}`: use general, flat, rough, slope, gravel or sand"
-                )
-            })
-    }
-
-    /// The terrain kind a specialist slot is for; `None` for the general slot.
-    pub fn kind(self) -> Option<AreaKind> {
-        match self {
-            PolicySlot::General => None,
-            PolicySlot::Flat => Some(AreaKind::Flat),
-            PolicySlot::Rough => Some(AreaKind::Rough),
-            PolicySlot::Slope => Some(AreaKind::Slope),
-            PolicySlot::Gravel => Some(AreaKind::Gravel),
-            PolicySlot::Sand => Some(AreaKind::Sand),
-        }
-    }
-
-    /// The estimator class whose transitions the slot's learner trains on: its kind's code
-    /// (`AreaKind::code`; the two-class estimator's class 0, the lowest-mean component, is
-    /// flat, and 1 rough); `None`: all.
-    pub fn class(self) -> Option<u8> {
-        self.kind().map(AreaKind::code)
-    }
-
-    /// The specialist for an estimator class, a kind's code (SPEC S8), if there is one.
-    pub fn for_class(class: u8) -> Option<Self> {
-        Self::ALL
-            .into_iter()
-            .find(|s| s.kind().is_some_and(|k| k.code() == class))
-    }
-}
-
-/// Which slot an env acts with (DESIGN §5).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Acting {
-    General,
-    Flat,
-    Rough,
-    Slope,
-    Gravel,
-    Sand,
-    /// The specialist for the estimator's current class, changed only after the estimate has
-    /// held for `switch-dwell` ticks (SPEC S8).
-    Switch,
-    /// A gym client sends every env's actions each tick (`sim.external`); no policy acts.
-    External,
-}
-
-impl Acting {
-    /// The slot every env acts with, unless switching.
-    pub fn fixed(self) -> Option<PolicySlot> {
-        match self {
-            Acting::General => Some(PolicySlot::General),
-            Acting::Flat => Some(PolicySlot::Flat),
-            Acting::Rough => Some(PolicySlot::Rough),
-            Acting::Slope => Some(PolicySlot::Slope),
-            Acting::Gravel => Some(PolicySlot::Gravel),
-            Acting::Sand => Some(PolicySlot::Sand),
-            Acting::Switch | Acting::External => None,
-        }
     }
 }
 

@@ -2,69 +2,16 @@
 //! own sections.
 
 use super::range::invalid;
-use super::setting::{Setting, choices, count, flag, real, settings};
+use super::setting::{choices, count, flag, real, settings};
 use super::{
-    Acting, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, PolicySlot, RobotConfig,
-    TaskConfig, TerrainConfig,
+    Acting, AreaKind, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, PolicySlot,
+    RobotConfig, TaskConfig, TerrainConfig,
 };
-use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 /// The longest physics step a simulated IMU works with, seconds: it samples once per step,
 /// and below 50 Hz its attitude filter falls behind the chassis on rough ground.
 pub const IMU_MAX_PHYSICS_DT: f64 = 0.02;
-
-/// Which area an env lives in: a terrain kind's area (SPEC S1's flat and rough, and our
-/// `slope`, `gravel` and `sand`), or the mixed course (our extension, for the switching evaluation),
-/// flat ground that crosses other kinds part-way.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum AreaKind {
-    #[default]
-    Flat,
-    Rough,
-    Mixed,
-    Slope,
-    Gravel,
-    Sand,
-}
-
-impl Setting for AreaKind {}
-
-impl AreaKind {
-    /// The terrain kinds, in code order (every area but the mixed course).
-    pub const KINDS: [AreaKind; 5] = [
-        AreaKind::Flat,
-        AreaKind::Rough,
-        AreaKind::Slope,
-        AreaKind::Gravel,
-        AreaKind::Sand,
-    ];
-
-    /// The wire and CSV code: 0 flat, 1 rough, 2 mixed, 3 slope, 4 gravel, 5 sand. Telemetry never
-    /// carries 2: a mixed env reports the ground under the robot.
-    pub fn code(self) -> u8 {
-        match self {
-            AreaKind::Flat => 0,
-            AreaKind::Rough => 1,
-            AreaKind::Mixed => 2,
-            AreaKind::Slope => 3,
-            AreaKind::Gravel => 4,
-            AreaKind::Sand => 5,
-        }
-    }
-
-    pub fn name(self) -> &'static str {
-        match self {
-            AreaKind::Flat => "flat",
-            AreaKind::Rough => "rough",
-            AreaKind::Mixed => "mixed",
-            AreaKind::Slope => "slope",
-            AreaKind::Gravel => "gravel",
-            AreaKind::Sand => "sand",
-        }
-    }
-}
 
 settings! {
     /// An axis-aligned rectangle on the ground (X-Z plane), metres.
@@ -89,21 +36,12 @@ impl Rect {
 settings! {
     /// The simulator: envs, physics timing, terrain, robot and task rules.
     pub struct SimConfig {
-        /// Envs in the flat area (SPEC S6, initial flat model: 9).
-        pub flat_envs: usize = 9 => count(0, 1024), "envs", Essential;
-        /// Envs in the rough area.
-        pub rough_envs: usize = 0 => count(0, 1024), "envs", Essential;
-        /// Envs in the slope area (not in the paper; needs one in `terrain.areas`), after the
-        /// rough ones.
-        pub slope_envs: usize = 0 => count(0, 1024), "envs", Essential;
-        /// Envs in the gravel area (not in the paper; needs one in `terrain.areas`), after the
-        /// slope ones.
-        pub gravel_envs: usize = 0 => count(0, 1024), "envs", Essential;
-        /// Envs in the sand area (not in the paper; needs one in `terrain.areas`), after the
-        /// gravel ones.
-        pub sand_envs: usize = 0 => count(0, 1024), "envs", Essential;
-        /// Envs on the mixed course (`terrain.mixed-area`), after all the others.
-        pub mixed_envs: usize = 0 => count(0, 1024), "envs", Essential;
+        /// Envs per area, e.g. `{ flat = 4, rough = 4 }`: a terrain kind's (which needs its area
+        /// in `terrain.areas`) or `mixed` (the course). Envs are numbered in area order, kinds
+        /// first, whatever the table's order. In a config that `extends` another it replaces
+        /// the base's table. SPEC S6's initial flat model: 9 flat.
+        pub envs: BTreeMap<AreaKind, usize> = BTreeMap::from([(AreaKind::Flat, 9)])
+            => count(0, 1024), "envs", Essential;
         /// Threads stepping the worlds (1 is allowed).
         pub threads: usize = 2 => count(1, 64), "threads", Advanced;
         /// The policy slot the envs act with, `switch` (DESIGN §5), or `external` (a gym client
@@ -148,55 +86,47 @@ settings! {
     }
 }
 
-/// `sim.acting`'s choices are [`Acting`]'s names.
-impl Setting for Acting {}
-
 impl SimConfig {
     /// Whether each env carries the simulated IMU and its filter.
     pub fn simulates_imu(&self) -> bool {
         self.observation == AttitudeSource::Imu || self.imu.simulate
     }
 
-    /// The env counts per area, in env order: flat, rough, slope, gravel, sand, mixed.
-    pub fn env_counts(&self) -> [(AreaKind, usize); 6] {
-        [
-            (AreaKind::Flat, self.flat_envs),
-            (AreaKind::Rough, self.rough_envs),
-            (AreaKind::Slope, self.slope_envs),
-            (AreaKind::Gravel, self.gravel_envs),
-            (AreaKind::Sand, self.sand_envs),
-            (AreaKind::Mixed, self.mixed_envs),
-        ]
+    /// The envs in `area`.
+    pub fn envs_in(&self, area: AreaKind) -> usize {
+        self.envs.get(&area).copied().unwrap_or(0)
     }
 
     pub fn num_envs(&self) -> usize {
-        self.env_counts().iter().map(|(_, n)| n).sum()
+        self.envs.values().sum()
     }
 
-    /// The area of env `i`: flat envs first, then rough, slope, gravel, sand and mixed (an index
-    /// past the last env counts as mixed).
+    /// The area of env `i`: areas in [`AreaKind::ALL`]'s order, the kinds' first and the mixed
+    /// course's last (an index past the last env counts as mixed).
     pub fn area_of(&self, env: usize) -> AreaKind {
         let mut first = 0;
-        for (area, n) in self.env_counts() {
+        for (area, n) in &self.envs {
             first += n;
             if env < first {
-                return area;
+                return *area;
             }
         }
         AreaKind::Mixed
     }
 
-    /// "4 flat + 4 rough envs", with "+ n slope", "+ n gravel", "+ n sand", "+ n mixed" for the areas
-    /// that have envs.
+    /// "4 flat + 4 rough envs", with "+ n slope", …, "+ n mixed" for the other areas that
+    /// have envs.
     pub fn describe_envs(&self) -> String {
-        let others: String = self.env_counts()[2..]
+        let others: String = self
+            .envs
             .iter()
-            .filter(|(_, n)| *n > 0)
+            .filter(|(area, n)| **n > 0 && !matches!(area, AreaKind::Flat | AreaKind::Rough))
             .map(|(area, n)| format!(" + {n} {}", area.name()))
             .collect();
         format!(
             "{} flat + {} rough{others} envs",
-            self.flat_envs, self.rough_envs
+            self.envs_in(AreaKind::Flat),
+            self.envs_in(AreaKind::Rough)
         )
     }
 
@@ -207,13 +137,7 @@ impl SimConfig {
 
     /// `n` envs in each of `areas`, none elsewhere.
     pub fn spread(&mut self, areas: &[AreaKind], n: usize) {
-        let count = |a: AreaKind| if areas.contains(&a) { n } else { 0 };
-        self.flat_envs = count(AreaKind::Flat);
-        self.rough_envs = count(AreaKind::Rough);
-        self.slope_envs = count(AreaKind::Slope);
-        self.gravel_envs = count(AreaKind::Gravel);
-        self.sand_envs = count(AreaKind::Sand);
-        self.mixed_envs = count(AreaKind::Mixed);
+        self.envs = areas.iter().map(|a| (*a, n)).collect();
     }
 
     /// Decision step, seconds (0.1 by default, SPEC S2).
@@ -226,21 +150,15 @@ impl SimConfig {
     pub(super) fn validate(&self) -> Result<(), ConfigError> {
         if self.num_envs() == 0 {
             return Err(invalid(
-                "sim.flat-envs",
-                self.flat_envs,
-                "the envs of all areas (flat-envs, rough-envs, slope-envs, gravel-envs, sand-envs, mixed-envs) must be at least 1",
+                "sim.envs",
+                &self.envs,
+                "needs at least one env, e.g. `envs = { flat = 4 }`",
             ));
         }
-        for (field, area, n) in [
-            ("sim.flat-envs", AreaKind::Flat, self.flat_envs),
-            ("sim.rough-envs", AreaKind::Rough, self.rough_envs),
-            ("sim.slope-envs", AreaKind::Slope, self.slope_envs),
-            ("sim.gravel-envs", AreaKind::Gravel, self.gravel_envs),
-            ("sim.sand-envs", AreaKind::Sand, self.sand_envs),
-        ] {
-            if n > 0 && self.terrain.area(area).is_none() {
+        for (area, n) in &self.envs {
+            if *n > 0 && *area != AreaKind::Mixed && self.terrain.area(*area).is_none() {
                 return Err(invalid(
-                    field,
+                    &format!("sim.envs.{}", area.name()),
                     n,
                     format!("needs a `{}` area in sim.terrain.areas", area.name()),
                 ));
@@ -270,15 +188,11 @@ mod tests {
 
     #[test]
     fn areas_are_assigned_flat_first() {
+        use AreaKind::{Flat, Gravel, Mixed, Rough, Slope};
         let s = SimConfig {
-            flat_envs: 2,
-            rough_envs: 1,
-            slope_envs: 1,
-            gravel_envs: 2,
-            mixed_envs: 1,
+            envs: BTreeMap::from([(Mixed, 1), (Gravel, 2), (Slope, 1), (Rough, 1), (Flat, 2)]),
             ..SimConfig::default()
         };
-        use AreaKind::{Flat, Gravel, Mixed, Rough, Slope};
         assert_eq!(
             (0..7).map(|i| s.area_of(i)).collect::<Vec<_>>(),
             vec![Flat, Flat, Rough, Slope, Gravel, Gravel, Mixed]

@@ -11,8 +11,8 @@ settings! {
     pub struct TerrainConfig {
         /// Seed of the procedural floor (independent of the run seed, so runs can share a floor).
         pub seed: u64 = 2026 => count(0, u64::MAX), "", Advanced;
-        /// The training areas, at most one per terrain kind (`flat`, `rough`, `slope`, `gravel`,
-        /// `sand`), each `{ kind, x = [min, max], z = [min, max] }`; by default SPEC S1's two.
+        /// The training areas, at most one per terrain kind, each `{ kind, x = [min, max],
+        /// z = [min, max] }`; by default SPEC S1's two.
         pub areas: Vec<Area> = vec![
             Area {
                 kind: AreaKind::Flat,
@@ -80,7 +80,7 @@ settings! {
     /// One area of a terrain kind: a rectangle on the ground.
     #[derive(Copy)]
     pub struct Area, required {
-        /// The terrain kind: `flat`, `rough`, `slope`, `gravel` or `sand` (not `mixed`, the course).
+        /// The terrain kind (not `mixed`, the course).
         pub kind: AreaKind => choices::<AreaKind>(), "", Advanced;
         /// [min, max] along X.
         pub x: [f64; 2] => real(-1000.0, 1000.0), "m", Advanced;

@@ -20,7 +20,7 @@ fn defaults_are_valid_and_round_trip() {
 
 #[test]
 fn unknown_key_names_its_line() {
-    let e = parse("[sim]\nflat-envs = 2\nwheel = 3\n").expect_err("unknown");
+    let e = parse("[sim]\nenvs = { flat = 2 }\nwheel = 3\n").expect_err("unknown");
     let msg = e.to_string();
     assert!(
         msg.starts_with("t.toml:3:1: unknown field `wheel`"),
@@ -36,8 +36,15 @@ fn out_of_range_names_the_field() {
         e.to_string(),
         "config field `sim.robot.wheel-radius` = 2.0: must be in [0.01, 0.2]"
     );
-    let e = parse("[sim]\nflat-envs = 0\n").expect_err("no envs");
-    assert!(e.to_string().contains("sim.flat-envs"));
+    let e = parse("[sim]\nenvs = { flat = 0 }\n").expect_err("no envs");
+    assert!(e.to_string().contains("sim.envs"), "{e}");
+    let e = parse("[sim]\nenvs = { flat = 2000 }\n").expect_err("too many");
+    assert_eq!(
+        e.to_string(),
+        "config field `sim.envs` = 2000: for flat, must be in [0, 1024]"
+    );
+    let e = parse("[sim]\nenvs = { ice = 2 }\n").expect_err("no such area");
+    assert!(e.to_string().contains("unknown variant `ice`"), "{e}");
     let e = parse("[reproduce]\neval-roughness-scale = 2.5\n").expect_err("range");
     assert_eq!(
         e.to_string(),
@@ -162,15 +169,16 @@ fn a_config_extends_another_and_overrides_only_its_own_keys() {
     };
     write(
         "base.toml",
-        "[run]\nseed = 7\n[sim]\nthreads = 1\nrough-envs = 3\n[sim.task]\nstall-steps = 50\n",
+        "[run]\nseed = 7\n[sim]\nthreads = 1\nenvs = { flat = 2, rough = 3 }\n[sim.task]\nstall-steps = 50\n",
     );
     let top = write(
         "top.toml",
-        "extends = \"base.toml\"\n[sim]\nrough-envs = 1\nobservation = \"imu\"\nphysics-dt = 0.02\nsubsteps = 5\n",
+        "extends = \"base.toml\"\n[sim]\nenvs = { rough = 1 }\nobservation = \"imu\"\nphysics-dt = 0.02\nsubsteps = 5\n",
     );
     let c = Config::load(&top).expect("extended");
     assert_eq!((c.run.seed, c.sim.threads), (7, 1));
-    assert_eq!(c.sim.rough_envs, 1);
+    // A table-valued field is one value: the top's env counts replace the base's.
+    assert_eq!(c.sim.describe_envs(), "0 flat + 1 rough envs");
     assert_eq!(c.sim.observation, AttitudeSource::Imu);
     assert_eq!(c.sim.task.stall_steps, 50);
     let cycle = write("cycle.toml", "extends = \"cycle.toml\"\n");
@@ -186,10 +194,10 @@ fn a_config_extends_another_and_overrides_only_its_own_keys() {
 
 #[test]
 fn terrain_areas_are_a_list_of_kinds_and_envs_need_their_kinds_area() {
-    let e = parse("[sim]\nslope-envs = 2\n").expect_err("no slope area");
+    let e = parse("[sim]\nenvs = { slope = 2 }\n").expect_err("no slope area");
     assert_eq!(
         e.to_string(),
-        "config field `sim.slope-envs` = 2: needs a `slope` area in sim.terrain.areas"
+        "config field `sim.envs.slope` = 2: needs a `slope` area in sim.terrain.areas"
     );
     let two_flat = "[sim.terrain]\nareas = [{ kind = \"flat\", x = [0, 1], z = [0, 1] }, { kind = \"flat\", x = [2, 3], z = [0, 1] }]\n";
     let e = parse(two_flat).expect_err("two flat areas");
@@ -204,9 +212,22 @@ fn terrain_areas_are_a_list_of_kinds_and_envs_need_their_kinds_area() {
     let e = parse(upside_down).expect_err("min > max");
     assert!(e.to_string().contains("min < max"), "{e}");
     let c = parse(
-        "[sim]\nflat-envs = 1\ngravel-envs = 2\n[sim.terrain]\nareas = [{ kind = \"flat\", x = [0, 1], z = [0, 1] }, { kind = \"gravel\", x = [2, 3], z = [0, 1] }]\n",
+        "[sim]\nenvs = { gravel = 2, flat = 1 }\n[sim.terrain]\nareas = [{ kind = \"flat\", x = [0, 1], z = [0, 1] }, { kind = \"gravel\", x = [2, 3], z = [0, 1] }]\n",
     )
     .expect("gravel world");
     assert_eq!(c.sim.num_envs(), 3);
     assert_eq!(c.sim.area_of(2), AreaKind::Gravel);
+}
+
+#[test]
+fn the_old_env_count_keys_are_refused_with_the_table_that_replaces_them() {
+    let e = parse("[sim]\nflat-envs = 4\nrough-envs = 4\nthreads = 1\n").expect_err("old keys");
+    assert_eq!(
+        e.to_string(),
+        "config field `sim.flat-envs` = 4: env counts are one table: write `envs = { flat = 4, rough = 4 }` under [sim]"
+    );
+    assert!(
+        parse("[reproduce]\nflat-envs = 4\n").is_ok(),
+        "stage a's count is no area's"
+    );
 }

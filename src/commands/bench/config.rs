@@ -294,6 +294,7 @@ impl Plan {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::config::AreaKind;
 
     fn load(body: &str) -> anyhow::Result<Plan> {
         let dir = tempfile::tempdir().expect("tempdir");
@@ -324,7 +325,11 @@ mod tests {
         };
         let cfg = plan.config_for(&m, Path::new("x"));
         assert_eq!(
-            (cfg.sim.flat_envs, cfg.sim.rough_envs, cfg.sim.threads),
+            (
+                cfg.sim.envs_in(AreaKind::Flat),
+                cfg.sim.envs_in(AreaKind::Rough),
+                cfg.sim.threads
+            ),
             (0, 8, 2)
         );
         assert_eq!(
@@ -360,8 +365,8 @@ mod tests {
         let msg = e.to_string();
         assert!(msg.contains(":2:1: unknown field `thread`"), "{msg}");
         assert!(!msg.contains('\n'));
-        let e =
-            load("[sim]\nflat-envs = 1\n").expect_err("runtime keys belong in the runtime file");
+        let e = load("[sim]\nenvs = { flat = 1 }\n")
+            .expect_err("runtime keys belong in the runtime file");
         assert!(e.to_string().contains("unknown field `sim`"), "{e}");
     }
 

@@ -225,6 +225,7 @@ fn specialists_start(e: &mut Config, roles: &[Role], general: PathBuf) {
 mod tests {
     use super::*;
     use common::config::Area;
+    use common::config::AreaKind::{Flat, Gravel, Mixed, Slope};
 
     #[test]
     fn fresh_specialists_start_from_new_weights_the_others_from_the_general_model() {
@@ -288,13 +289,8 @@ mod tests {
         );
         let b = p.envs(3);
         assert_eq!(
-            (
-                b.sim.flat_envs,
-                b.sim.slope_envs,
-                b.sim.gravel_envs,
-                b.sim.mixed_envs
-            ),
-            (3, 3, 0, 0)
+            [Flat, Slope, Gravel, Mixed].map(|a| b.sim.envs_in(a)),
+            [3, 3, 0, 0]
         );
     }
 }

@@ -65,20 +65,13 @@ pub(super) struct Role {
     pub(super) kind: AreaKind,
 }
 
-/// The specialist of each of `kinds`: SPEC S8's flat- and rough-terrain models FTM and RTM,
-/// and beyond the paper STM (slope), GTM (gravel) and DTM (sand: dune terrain model).
+/// The specialist of each of `kinds` (`AreaKind::model`): SPEC S8's flat- and rough-terrain
+/// models FTM and RTM, and beyond the paper one per other kind.
 pub(super) fn roles(kinds: &[AreaKind]) -> Vec<Role> {
     kinds
         .iter()
         .filter_map(|&kind| {
-            let model = match kind {
-                AreaKind::Flat => "FTM",
-                AreaKind::Rough => "RTM",
-                AreaKind::Slope => "STM",
-                AreaKind::Gravel => "GTM",
-                AreaKind::Sand => "DTM",
-                AreaKind::Mixed => return None,
-            };
+            let model = kind.model()?;
             let slot = PolicySlot::for_class(kind.code())?;
             Some(Role { model, slot, kind })
         })
