@@ -246,25 +246,12 @@ fn watch_for(w: &support::Watch, seen: &mut Vec<u32>, d: Duration) {
     }
 }
 
-/// What `lavatube status` says about the sim hosts of learner-host run `run`.
-fn status_of(run: &str) -> String {
-    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .arg("status")
-        .output()
-        .expect("lavatube status");
-    let text = String::from_utf8_lossy(&out.stdout).into_owned();
-    let from = text.find(&format!("run {run}:")).unwrap_or(text.len());
-    let section = &text[from..];
-    let end = section[1..].find("\nrun ").map_or(section.len(), |i| i + 1);
-    section[..end].to_string()
-}
-
 /// Waits until `lavatube status` lists every line of `want` for run `run` (the bridge
 /// publishes its table every second).
 fn until_status(run: &str, want: &[&str]) {
     let started = Instant::now();
     loop {
-        let said = status_of(run);
+        let said = support::status_of(run);
         if want.iter().all(|w| said.contains(w)) {
             return;
         }

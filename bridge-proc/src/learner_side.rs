@@ -5,7 +5,7 @@
 //! every second on the local `hosts` service for `lavatube status`.
 
 use crate::directions::{Counts, Stop, both_directions};
-use crate::frame::{self, Key, Kind};
+use crate::frame::{self, Key, Kind, Opener, Place, Sealer, Streams};
 use crate::link::{self, Net, zerr};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, Sender};
@@ -21,14 +21,22 @@ use zenoh::sample::SampleKind;
 
 /// Receives rollout chunks and forwards policies until the run stops this process.
 pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
-    let key = Key::new(&cfg.net.read_key()?);
-    let net = link::listen(endpoint)?;
+    let secret = cfg.net.read_key()?;
+    let key = Key::new(&secret);
+    let net = link::listen(endpoint, &link::Credentials::new(&secret))?;
+    // This start's run session: rollout frames must name it, so none sealed before it (of
+    // another run, or of this one before the learner host restarted) is taken.
+    let session = frame::new_id();
     let _token = net
         .liveliness()
-        .declare_token(link::LEARNER_TOKEN)
+        .declare_token(link::learner_token(session))
         .wait()
         .map_err(zerr("liveliness token"))?;
-    tracing::info!(endpoint, "learner host bridge listening");
+    tracing::info!(
+        endpoint,
+        session = format!("{session:016x}"),
+        "learner host bridge listening"
+    );
     let slots: Vec<PolicySlot> = cfg
         .run
         .learners
@@ -39,8 +47,8 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
     let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
     both_directions(
         "policies",
-        move |stop| forward_policies(&run, &slots, &net2, &key2, stop),
-        |stop| receive_rollouts(cfg, run_id, &net, &key, stop),
+        move |stop| forward_policies(&run, &slots, &net2, (&key2, session), stop),
+        |stop| receive_rollouts(cfg, run_id, &net, (&key, session), stop),
     )
 }
 
@@ -48,7 +56,7 @@ fn forward_policies(
     run_id: &str,
     slots: &[PolicySlot],
     net: &Net,
-    key: &Key,
+    (key, session): (&Key, u64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "bridge-policies")?;
@@ -61,7 +69,9 @@ fn forward_policies(
             .congestion_control(CongestionControl::Block)
             .wait()
             .map_err(zerr("policy publisher"))?;
-        ports.push((slot, rx, publisher));
+        // Each slot's frames are one stream, in the session's epoch.
+        let sealer = Sealer::in_epoch(key, Kind::Policy, slot.index() as u32, session);
+        ports.push((slot, rx, publisher, sealer));
     }
     let queries = net
         .declare_queryable(link::POLICY_ALL)
@@ -72,20 +82,13 @@ fn forward_policies(
     let mut newest: BTreeMap<PolicySlot, Vec<u8>> = BTreeMap::new();
     let mut sent = Counts::default();
     while !stop.is_set() && !bus.stop_requested(&control) {
-        if let Some((_, first, _)) = ports.first() {
+        if let Some((_, first, _, _)) = ports.first() {
             first.wait(Duration::from_millis(10))?;
         }
-        for (slot, rx, publisher) in &ports {
+        for (slot, rx, publisher, sealer) in &mut ports {
             while let Some(sample) = rx.try_recv()? {
                 let h = *sample.user_header();
-                let bytes = frame::encode(
-                    key,
-                    Kind::Policy,
-                    slot.index() as u32,
-                    sent.frames,
-                    &h,
-                    sample.payload(),
-                );
+                let bytes = sealer.seal(session, &h, sample.payload());
                 sent.add(bytes.len());
                 publisher
                     .put(bytes.clone())
@@ -117,11 +120,38 @@ const PUBLISH_EVERY: Duration = Duration::from_secs(1);
 /// Most sim hosts a `hosts` message lists (`net.sim-hosts` allows as many).
 const MAX_HOSTS: usize = 1024;
 
+/// How many frames each source may still send this second.
+struct Budget {
+    per_s: u32,
+    second: Instant,
+    used: BTreeMap<u32, u32>,
+}
+
+impl Budget {
+    fn new(per_s: u32) -> Self {
+        Self {
+            per_s,
+            second: Instant::now(),
+            used: BTreeMap::new(),
+        }
+    }
+
+    /// Whether `source` may send one more frame this second.
+    fn take(&mut self, source: u32) -> bool {
+        if self.second.elapsed() >= Duration::from_secs(1) {
+            self.second = Instant::now();
+            self.used.clear();
+        }
+        let used = self.used.entry(source).or_default();
+        *used += 1;
+        *used <= self.per_s
+    }
+}
+
 /// What has come from one sim host.
 #[derive(Debug, Default)]
 struct Host {
     joined: bool,
-    next_seq: u64,
     lost: u64,
     received: Counts,
     last_chunk: u64,
@@ -190,7 +220,7 @@ fn receive_rollouts(
     cfg: &Config,
     run_id: &str,
     net: &Net,
-    key: &Key,
+    (key, session): (&Key, u64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "bridge-rollouts")?;
@@ -202,7 +232,10 @@ fn receive_rollouts(
     let chunks = link::subscribe(net, link::ROLLOUT_ALL, 64)?;
     let sims = link::watch_tokens(net, link::SIM_ALL, 16)?;
     let mut intake = Intake {
-        key,
+        opener: Opener::new(key),
+        session,
+        streams: Streams::default(),
+        budget: Budget::new(cfg.net.source_frames_per_s),
         max_len,
         tx,
         hosts_tx,
@@ -223,7 +256,7 @@ fn receive_rollouts(
         else {
             continue;
         };
-        intake.take(&sample.payload().to_bytes())?;
+        intake.take(sample.key_expr().as_str(), &sample.payload().to_bytes())?;
     }
     intake.finish();
     Ok(())
@@ -231,8 +264,13 @@ fn receive_rollouts(
 
 /// The rollout side of the learner host's bridge: where chunks go, and what each sim host
 /// has sent.
-struct Intake<'a> {
-    key: &'a Key,
+struct Intake {
+    opener: Opener,
+    /// This start's run session, which every rollout frame must name.
+    session: u64,
+    /// Which frames of each sim host's stream have come.
+    streams: Streams,
+    budget: Budget,
     /// The most transitions a chunk of this run holds.
     max_len: usize,
     tx: Sender<Transition, RolloutHeader>,
@@ -245,7 +283,7 @@ struct Intake<'a> {
     published: Instant,
 }
 
-impl Intake<'_> {
+impl Intake {
     /// Logs the sim hosts every [`LOG_EVERY`] and publishes their table every
     /// [`PUBLISH_EVERY`].
     fn report_hosts(&mut self) -> anyhow::Result<()> {
@@ -275,41 +313,68 @@ impl Intake<'_> {
         }
     }
 
-    /// Takes one rollout frame: refuses it or republishes its chunk, and counts it in its
-    /// sim host's sequence.
-    fn take(&mut self, bytes: &[u8]) -> anyhow::Result<()> {
-        let f = match frame::decode::<RolloutHeader, _>(
-            self.key,
-            Kind::Rollout,
-            bytes,
-            &mut self.items,
-        ) {
+    /// Takes one rollout frame published on `key_expr`: refuses it or republishes its chunk,
+    /// and counts it in its sim host's stream.
+    fn take(&mut self, key_expr: &str, bytes: &[u8]) -> anyhow::Result<()> {
+        let Some(source) = key_expr
+            .strip_prefix("lavatube/rollout/")
+            .and_then(|s| s.parse::<u32>().ok())
+        else {
+            self.refused.refuse("malformed", &format!("key {key_expr}"));
+            return Ok(());
+        };
+        // Read no further than each host's share: a flood is dropped before it costs a
+        // decryption.
+        if !self.budget.take(source) {
+            self.refused
+                .refuse("over the source's rate", &format!("source {source}"));
+            return Ok(());
+        }
+        let f = match self
+            .opener
+            .open::<RolloutHeader, _>(Kind::Rollout, bytes, &mut self.items)
+        {
             Ok(f) => f,
             Err(r) => {
                 self.refused.refuse(r.kind, &r.detail);
                 return Ok(());
             }
         };
-        // An authenticated frame counts in its source's sequence, even if its chunk is refused.
-        let host = self.hosts.entry(f.source).or_default();
-        if f.seq > host.next_seq {
-            host.lost += f.seq - host.next_seq;
-            tracing::warn!(source = f.source, lost = host.lost, "rollout frames lost");
+        let stamp = f.stamp;
+        if stamp.session != self.session {
+            self.refused.refuse(
+                "other session",
+                &format!(
+                    "sealed for session {:016x}, not this run's {:016x}",
+                    stamp.session, self.session
+                ),
+            );
+            return Ok(());
         }
-        host.next_seq = host.next_seq.max(f.seq + 1);
+        if stamp.source != source || f.header.source != source {
+            self.refused.refuse(
+                "source mismatch",
+                &format!(
+                    "on {key_expr}: frame of source {}, chunk of {}",
+                    stamp.source, f.header.source
+                ),
+            );
+            return Ok(());
+        }
+        // A chunk is trained on once: a frame its stream has had is refused, the newest too.
+        if !self.admit(stamp) {
+            return Ok(());
+        }
+        let host = self.hosts.entry(source).or_default();
         // DESIGN §2: what a sim host sends is checked as a local chunk would be.
-        let refusal = if f.header.source != f.source {
-            Some("source mismatch")
-        } else if self.items.len() > self.max_len {
+        let refusal = if self.items.len() > self.max_len {
             Some("larger than the run's chunks")
         } else {
             rollout::chunk_refusal(&f.header, &self.items)
         };
         if let Some(kind) = refusal {
-            self.refused.refuse(
-                kind,
-                &format!("source {} chunk {}", f.source, f.header.chunk),
-            );
+            self.refused
+                .refuse(kind, &format!("source {source} chunk {}", f.header.chunk));
             return Ok(());
         }
         host.received.add(bytes.len());
@@ -317,6 +382,35 @@ impl Intake<'_> {
         host.env_steps = f.header.env_steps;
         self.tx.send(f.header, &self.items)?;
         Ok(())
+    }
+
+    /// Whether a sealed frame of `stamp` is new in its sim host's stream (counting frames lost
+    /// before it); a frame the stream has had is refused and counted.
+    fn admit(&mut self, stamp: frame::Stamp) -> bool {
+        let source = stamp.source;
+        let host = self.hosts.entry(source).or_default();
+        match self.streams.admit(stamp) {
+            Ok(Place::New { lost }) => {
+                if lost > 0 {
+                    host.lost += lost;
+                    tracing::warn!(source, lost = host.lost, "rollout frames lost");
+                }
+                true
+            }
+            Ok(Place::Restarted) => {
+                tracing::info!(source, "sim host bridge started again");
+                true
+            }
+            Ok(Place::Last) => {
+                self.refused
+                    .refuse("replayed", &format!("source {source} frame {}", stamp.seq));
+                false
+            }
+            Err(r) => {
+                self.refused.refuse(r.kind, &r.detail);
+                false
+            }
+        }
     }
 
     /// Logs what each sim host sent, and the frames refused.

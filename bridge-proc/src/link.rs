@@ -1,7 +1,10 @@
 //! The Zenoh side of a bridge: the connection each side opens, and the key expressions of a
 //! run across hosts (DESIGN §9). The learner host's bridge is a Zenoh router listening on the
 //! run's endpoint; each sim host's bridge is a peer that connects to it, and that Zenoh
-//! reconnects by itself when the learner host comes back.
+//! reconnects by itself when the learner host comes back. Both take only sessions that prove
+//! they hold the run's credentials (Zenoh's user-password authentication, a challenge and
+//! an HMAC of it, with a password derived from the run's key): a session without them is
+//! closed in its handshake, before it can subscribe, query, publish or declare a token.
 
 use anyhow::Context;
 use zenoh::handlers::{FifoChannel, FifoChannelHandler};
@@ -30,8 +33,18 @@ pub fn sim_token(source: u32) -> String {
 }
 /// Every sim host's liveliness token.
 pub const SIM_ALL: &str = "lavatube/sim/*";
-/// The learner host's liveliness token: a sim host asks for policies again when it appears.
-pub const LEARNER_TOKEN: &str = "lavatube/learner";
+/// The learner host's liveliness token, naming the run session of this start of its bridge:
+/// a sim host adopts the session and asks for policies again when it appears.
+pub fn learner_token(session: u64) -> String {
+    format!("lavatube/learner/{session:016x}")
+}
+/// Every learner host token.
+pub const LEARNER_ALL: &str = "lavatube/learner/*";
+
+/// The session in a learner host's token key, `lavatube/learner/<session>`.
+pub fn token_session(key: &str) -> Option<u64> {
+    u64::from_str_radix(key.strip_prefix("lavatube/learner/")?, 16).ok()
+}
 
 /// A Zenoh error as one line saying what failed.
 pub fn zerr(what: &'static str) -> impl Fn(zenoh::Error) -> anyhow::Error {
@@ -65,14 +78,64 @@ pub fn token_source(key: &str) -> Option<u32> {
     key.strip_prefix("lavatube/sim/")?.parse().ok()
 }
 
-/// A Zenoh config that stays on the endpoints given: no multicast scouting, no gossip.
-fn config(mode: &str, listen: &[&str], connect: &[&str]) -> anyhow::Result<Config> {
+/// The run's session credentials, derived from its secret: what a session shows (an HMAC of
+/// the listener's challenge under the password) to be let in.
+pub struct Credentials {
+    user: &'static str,
+    password: String,
+}
+
+/// BLAKE3's key-derivation context for the session password.
+const PASSWORD_CONTEXT: &str = "lavatube 2026 Zenoh session password, version 1";
+
+impl Credentials {
+    pub fn new(secret: &[u8]) -> Self {
+        let password = blake3::derive_key(PASSWORD_CONTEXT, secret)
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        Self {
+            user: "lavatube",
+            password,
+        }
+    }
+
+    /// Zenoh's `transport/auth/usrpwd`: what this side shows, and the dictionary (a file
+    /// only this user may read, `user:password`) of what it takes from the other side.
+    fn usrpwd(&self) -> anyhow::Result<(String, tempfile::NamedTempFile)> {
+        use std::io::Write;
+        let mut dictionary = tempfile::Builder::new()
+            .prefix("lavatube-usrpwd-")
+            .tempfile()
+            .context("cannot write the session dictionary")?;
+        writeln!(dictionary, "{}:{}", self.user, self.password)
+            .context("cannot write the session dictionary")?;
+        let path = dictionary.path().display().to_string();
+        let value = format!(
+            "{{user: {:?}, password: {:?}, dictionary_file: {path:?}}}",
+            self.user, self.password
+        );
+        Ok((value, dictionary))
+    }
+}
+
+/// A Zenoh config that stays on the endpoints given (no multicast scouting, no gossip) and
+/// takes only sessions with `credentials`; the dictionary file must live until the session is
+/// open.
+fn config(
+    mode: &str,
+    listen: &[&str],
+    connect: &[&str],
+    credentials: &Credentials,
+) -> anyhow::Result<(Config, tempfile::NamedTempFile)> {
     let list = |v: &[&str]| {
         let quoted: Vec<String> = v.iter().map(|e| format!("{e:?}")).collect();
         format!("[{}]", quoted.join(","))
     };
     let mut c = Config::default();
+    let (usrpwd, dictionary) = credentials.usrpwd()?;
     for (key, value) in [
+        ("transport/auth/usrpwd", usrpwd),
         ("mode", format!("{mode:?}")),
         ("listen/endpoints", list(listen)),
         ("connect/endpoints", list(connect)),
@@ -89,13 +152,19 @@ fn config(mode: &str, listen: &[&str], connect: &[&str]) -> anyhow::Result<Confi
             "{period_init_ms: 100, period_max_ms: 1000, period_increase_factor: 2}".into(),
         ),
     ] {
+        // The password is a secret: never in an error message.
+        let shown = if key.starts_with("transport/auth") {
+            "(the run's credentials)"
+        } else {
+            &value
+        };
         c.insert_json5(key, &value)
-            .map_err(|e| anyhow::anyhow!("zenoh config `{key}` = {value}: {e}"))?;
+            .map_err(|e| anyhow::anyhow!("zenoh config `{key}` = {shown}: {e}"))?;
     }
-    Ok(c)
+    Ok((c, dictionary))
 }
 
-fn open(c: Config, what: &str) -> anyhow::Result<Net> {
+fn open((c, _dictionary): (Config, tempfile::NamedTempFile), what: &str) -> anyhow::Result<Net> {
     zenoh::open(c)
         .wait()
         .map_err(|e| anyhow::anyhow!("{e}"))
@@ -103,9 +172,9 @@ fn open(c: Config, what: &str) -> anyhow::Result<Net> {
 }
 
 /// The learner host's connection: a router listening on `endpoint` (e.g. `tcp/0.0.0.0:7447`).
-pub fn listen(endpoint: &str) -> anyhow::Result<Net> {
+pub fn listen(endpoint: &str, credentials: &Credentials) -> anyhow::Result<Net> {
     open(
-        config("router", &[endpoint], &[])?,
+        config("router", &[endpoint], &[], credentials)?,
         &format!("listening on {endpoint}"),
     )
 }
@@ -113,9 +182,9 @@ pub fn listen(endpoint: &str) -> anyhow::Result<Net> {
 /// A sim host's connection: a peer that connects to the learner host at `endpoint`, retrying
 /// until it answers, and again whenever the connection is lost. It listens on an ephemeral
 /// loopback port only, so it is reachable from nowhere else.
-pub fn connect(endpoint: &str) -> anyhow::Result<Net> {
+pub fn connect(endpoint: &str, credentials: &Credentials) -> anyhow::Result<Net> {
     open(
-        config("peer", &["tcp/127.0.0.1:0"], &[endpoint])?,
+        config("peer", &["tcp/127.0.0.1:0"], &[endpoint], credentials)?,
         &format!("to {endpoint}"),
     )
 }
@@ -129,5 +198,7 @@ mod tests {
         assert_eq!(token_source(&sim_token(12)), Some(12));
         assert_eq!(token_source("lavatube/sim/x"), None);
         assert_eq!(rollout_key(3), "lavatube/rollout/3");
+        assert_eq!(token_session(&learner_token(0xabc)), Some(0xabc));
+        assert_eq!(token_session("lavatube/learner"), None);
     }
 }

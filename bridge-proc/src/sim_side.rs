@@ -2,12 +2,14 @@
 //! host, and republishes the learner host's policies on the local `policy/<slot>` services
 //! (history 1, so a sim that starts late gets the newest weights). Until it has a policy of
 //! every slot it asks the learner host for the newest ones, and asks again whenever the
-//! learner host (re)appears, so a host that joins mid-run acts within a second. Once the
-//! sim's last chunk (`run.total-steps`) is out, the bridge closes its Zenoh connection,
-//! which sends what is still queued, and exits.
+//! learner host (re)appears, so a host that joins mid-run acts within a second. It takes the
+//! run session from the learner host's token, seals its chunks for that session and takes
+//! policies of that session only; until it has one, its chunks wait. Once the sim's last
+//! chunk (`run.total-steps`) is out, the bridge closes its Zenoh connection, which sends
+//! what is still queued, and exits.
 
 use crate::directions::{Counts, Stop, both_directions};
-use crate::frame::{self, Key, Kind};
+use crate::frame::{Key, Kind, Opener, Place, Sealer, Streams};
 use crate::link::{self, Net, zerr};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Sender};
@@ -15,6 +17,8 @@ use common::refusals::Refusals;
 use common::wire::PolicyHeader;
 use common::{ACT_DIM, Config, OBS_DIM, PolicyLayout};
 use std::collections::BTreeMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 use zenoh::Wait;
 use zenoh::qos::CongestionControl;
@@ -23,20 +27,25 @@ use zenoh::sample::SampleKind;
 
 /// Forwards rollout chunks and receives policies until the run stops this process.
 pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::Result<()> {
-    let key = Key::new(&cfg.net.read_key()?);
-    let net = link::connect(endpoint)?;
+    let secret = cfg.net.read_key()?;
+    let key = Key::new(&secret);
+    let net = link::connect(endpoint, &link::Credentials::new(&secret))?;
     let _token = net
         .liveliness()
         .declare_token(link::sim_token(source))
         .wait()
         .map_err(zerr("liveliness token"))?;
     tracing::info!(endpoint, source, "sim host bridge up");
-    let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
+    // The learner host's run session, 0 until its token has been seen.
+    let session = Arc::new(AtomicU64::new(0));
+    let (net2, run) = (net.clone(), run_id.to_string());
+    let sealer = Sealer::new(&key, Kind::Rollout, source);
     let total = cfg.run.total_steps;
+    let seen = session.clone();
     let ran = both_directions(
         "rollouts",
-        move |stop| forward_rollouts(&run, &net2, &key2, (source, total), stop),
-        |stop| receive_policies(cfg, run_id, &net, &key, stop),
+        move |stop| forward_rollouts(&run, &net2, sealer, (&seen, total), stop),
+        |stop| receive_policies(cfg, run_id, &net, (&key, &session), stop),
     );
     net.close()
         .wait()
@@ -44,15 +53,16 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
     ran
 }
 
-/// Forwards the sim's chunks, stamped with `source`, until the run stops or the chunk that
-/// completes `total` env steps is out.
+/// Forwards the sim's chunks, sealed by `sealer` (this host's source) for the learner host's
+/// current session, until the run stops or the chunk that completes `total` env steps is out.
 fn forward_rollouts(
     run_id: &str,
     net: &Net,
-    key: &Key,
-    (source, total): (u32, u64),
+    mut sealer: Sealer,
+    (session, total): (&AtomicU64, u64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
+    let source = sealer.source();
     let bus = Bus::connect(run_id, "bridge-rollouts")?;
     let control = bus.control_listener()?;
     let rx = bus.receiver(&ipc::ROLLOUT, None)?;
@@ -69,18 +79,17 @@ fn forward_rollouts(
         if !stopping {
             rx.wait(Duration::from_millis(100))?;
         }
+        // No chunk leaves before the learner host's session is known: it would be refused.
+        let now = session.load(Ordering::Relaxed);
+        if now == 0 {
+            last_out |= stopping;
+            continue;
+        }
         while let Some(sample) = rx.try_recv()? {
             // The chunk leaves stamped with this host's source id, whatever the sim said.
             let mut h = *sample.user_header();
             h.source = source;
-            let bytes = frame::encode(
-                key,
-                Kind::Rollout,
-                source,
-                sent.frames,
-                &h,
-                sample.payload(),
-            );
+            let bytes = sealer.seal(now, &h, sample.payload());
             sent.add(bytes.len());
             publisher
                 .put(bytes)
@@ -107,10 +116,13 @@ struct Republisher {
     received: Counts,
     /// The weights of the frame being checked.
     items: Vec<f32>,
+    opener: Opener,
+    /// Which frames of each slot's stream have come, this session.
+    streams: Streams,
 }
 
 impl Republisher {
-    fn new(cfg: &Config, bus: &Bus) -> anyhow::Result<Self> {
+    fn new(cfg: &Config, bus: &Bus, key: &Key) -> anyhow::Result<Self> {
         let len = PolicyLayout::new(OBS_DIM, &cfg.ppo.hidden, ACT_DIM).len();
         let mut senders = BTreeMap::new();
         for slot in cfg.run.learners.iter().chain(cfg.run.frozen.keys()) {
@@ -122,6 +134,8 @@ impl Republisher {
             refused: Refusals::new("policy frame"),
             received: Counts::default(),
             items: Vec::with_capacity(len),
+            opener: Opener::new(key),
+            streams: Streams::default(),
         })
     }
 
@@ -130,10 +144,12 @@ impl Republisher {
         self.last.len() == self.senders.len()
     }
 
-    /// Checks one frame and republishes its policy.
-    fn take(&mut self, key: &Key, bytes: &[u8]) -> anyhow::Result<()> {
+    /// Checks one frame of run session `session` and republishes its policy.
+    fn take(&mut self, session: u64, bytes: &[u8]) -> anyhow::Result<()> {
         self.received.add(bytes.len());
-        let f = match frame::decode::<PolicyHeader, f32>(key, Kind::Policy, bytes, &mut self.items)
+        let f = match self
+            .opener
+            .open::<PolicyHeader, f32>(Kind::Policy, bytes, &mut self.items)
         {
             Ok(f) => f,
             Err(r) => {
@@ -141,13 +157,32 @@ impl Republisher {
                 return Ok(());
             }
         };
+        if f.stamp.session != session {
+            self.refused.refuse(
+                "other session",
+                &format!(
+                    "sealed for session {:016x}, not the learner host's {session:016x}",
+                    f.stamp.session
+                ),
+            );
+            return Ok(());
+        }
+        match self.streams.admit(f.stamp) {
+            Ok(Place::New { .. } | Place::Restarted) => {}
+            // A query's reply repeats the newest policy: nothing to do.
+            Ok(Place::Last) => return Ok(()),
+            Err(r) => {
+                self.refused.refuse(r.kind, &r.detail);
+                return Ok(());
+            }
+        }
         let Some((&slot, tx)) = self
             .senders
             .iter()
-            .find(|(s, _)| s.index() as u32 == f.source)
+            .find(|(s, _)| s.index() as u32 == f.stamp.source)
         else {
             self.refused
-                .refuse("unknown slot", &format!("slot {}", f.source));
+                .refuse("unknown slot", &format!("slot {}", f.stamp.source));
             return Ok(());
         };
         if let Some(kind) = f.header.refusal(slot, &self.items) {
@@ -176,14 +211,14 @@ fn receive_policies(
     cfg: &Config,
     run_id: &str,
     net: &Net,
-    key: &Key,
+    (key, session): (&Key, &AtomicU64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "bridge-policies")?;
     let control = bus.control_listener()?;
-    let mut local = Republisher::new(cfg, &bus)?;
+    let mut local = Republisher::new(cfg, &bus, key)?;
     let policies = link::subscribe(net, link::POLICY_ALL, 16)?;
-    let learner_host = link::watch_tokens(net, link::LEARNER_TOKEN, 8)?;
+    let learner_host = link::watch_tokens(net, link::LEARNER_ALL, 8)?;
     let every = Duration::from_millis(cfg.net.policy_query_ms);
     // Ask as soon as the learner host's token shows it reachable; a query sent before the
     // connection is up would wait out its timeout. Without the token, ask every `every`.
@@ -193,15 +228,24 @@ fn receive_policies(
             tx.update_connections()?;
         }
         while let Some(s) = learner_host.try_recv().map_err(zerr("liveliness"))? {
+            let Some(id) = link::token_session(s.key_expr().as_str()) else {
+                continue;
+            };
             if s.kind() == SampleKind::Put {
-                tracing::info!("learner host reachable: asking for the newest policies");
+                tracing::info!(
+                    session = format!("{id:016x}"),
+                    "learner host reachable: asking for the newest policies"
+                );
+                session.store(id, Ordering::Relaxed);
                 local.last.clear();
+                local.streams.clear();
                 next_query = Instant::now();
-            } else {
+            } else if id == session.load(Ordering::Relaxed) {
                 tracing::warn!("learner host gone: the sim keeps acting on its last policies");
             }
         }
-        if !local.complete() && Instant::now() >= next_query {
+        let now = session.load(Ordering::Relaxed);
+        if now != 0 && !local.complete() && Instant::now() >= next_query {
             let replies = net
                 .get(link::POLICY_ALL)
                 .target(QueryTarget::All)
@@ -211,7 +255,7 @@ fn receive_policies(
                 .map_err(zerr("policy query"))?;
             while let Ok(reply) = replies.recv() {
                 if let Ok(sample) = reply.result() {
-                    local.take(key, &sample.payload().to_bytes())?;
+                    local.take(now, &sample.payload().to_bytes())?;
                 }
             }
             next_query = Instant::now() + every;
@@ -220,7 +264,7 @@ fn receive_policies(
             .recv_timeout(Duration::from_millis(50))
             .map_err(zerr("policy subscriber"))?
         {
-            local.take(key, &sample.payload().to_bytes())?;
+            local.take(now, &sample.payload().to_bytes())?;
         }
     }
     tracing::info!(

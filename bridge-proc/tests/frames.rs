@@ -1,9 +1,11 @@
-//! A learner host's bridge, run as its real process, against what a stranger on the network
-//! sends it (DESIGN §9): frames with a wrong key, of another kind, of other message types and
-//! with non-finite numbers are refused and counted, and a genuine chunk sent after them still
-//! reaches the learner host's shared memory, bit for bit.
+//! A learner host's bridge, run as its real process, against what reaches it (DESIGN §9): a
+//! session without the run's credentials is not let in; from one with them, frames with a
+//! wrong key, of another kind, of other message types, with non-finite numbers, sealed for
+//! another session, sent again, under another source, or past a source's share of a second
+//! are refused and counted, and a genuine chunk sent among them still reaches the learner
+//! host's shared memory, bit for bit, once.
 
-use bridge_proc::frame::{self, Key, Kind};
+use bridge_proc::frame::{Key, Kind, Sealer};
 use bridge_proc::link;
 use common::ipc::{self, Bus};
 use common::wire::{PolicyHeader, RolloutHeader};
@@ -62,7 +64,44 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         .spawn()
         .expect("bridge-proc starts");
 
-    let net = link::connect(&endpoint).expect("net");
+    // Without the run's credentials, or with another run's, no session opens.
+    for (who, password) in [("no", None), ("wrong", Some("another run's password"))] {
+        let mut outsider = zenoh::Config::default();
+        let mut settings = vec![
+            ("mode", "\"client\"".to_string()),
+            ("connect/endpoints", format!("[\"{endpoint}\"]")),
+            ("connect/timeout_ms", "3000".to_string()),
+            ("scouting/multicast/enabled", "false".to_string()),
+        ];
+        if let Some(p) = password {
+            settings.push((
+                "transport/auth/usrpwd",
+                format!("{{user: \"lavatube\", password: \"{p}\"}}"),
+            ));
+        }
+        for (k, v) in settings {
+            outsider.insert_json5(k, &v).expect("outsider config");
+        }
+        assert!(
+            zenoh::open(outsider).wait().is_err(),
+            "a session with {who} credentials was let in"
+        );
+    }
+
+    let net = link::connect(&endpoint, &link::Credentials::new(SECRET)).expect("net");
+    let learner = link::watch_tokens(&net, link::LEARNER_ALL, 8).expect("tokens");
+    let mut session = None;
+    until(
+        Duration::from_secs(30),
+        "the learner host's session",
+        || {
+            if let Ok(Some(s)) = learner.try_recv() {
+                session = link::token_session(s.key_expr().as_str());
+            }
+            session.is_some()
+        },
+    );
+    let session = session.expect("a session");
     let publisher = net
         .declare_publisher(link::rollout_key(1))
         .congestion_control(CongestionControl::Block)
@@ -94,23 +133,47 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         .collect();
     let mut nan = good.clone();
     nan[3].reward = f32::NAN;
-    let (ours, stranger) = (Key::new(SECRET), Key::new(&[9u8; 32]));
+    let ours = Key::new(SECRET);
+    let mut sealer = Sealer::new(&ours, Kind::Rollout, 1);
+    let (nan_frame, genuine) = (
+        sealer.seal(session, &header, &nan),
+        sealer.seal(session, &header, &good),
+    );
     let frames = [
-        // The refused frames reuse sequence number 0, so the genuine chunk's 1 follows the
-        // NaN chunk's 0 and no frame counts as lost.
-        frame::encode(&stranger, Kind::Rollout, 1, 0, &header, &good),
-        frame::encode(&ours, Kind::Policy, 1, 0, &header, &good),
-        frame::encode(
-            &ours,
-            Kind::Rollout,
-            1,
-            0,
-            &PolicyHeader::default(),
-            &[0.5f32; 8],
-        ),
-        frame::encode(&ours, Kind::Rollout, 1, 0, &header, &nan),
-        frame::encode(&ours, Kind::Rollout, 1, 1, &header, &good),
+        Sealer::new(&Key::new(&[9u8; 32]), Kind::Rollout, 1).seal(session, &header, &good),
+        Sealer::new(&ours, Kind::Policy, 1).seal(session, &header, &good),
+        Sealer::new(&ours, Kind::Rollout, 1).seal(session, &PolicyHeader::default(), &[0.5f32; 8]),
+        Sealer::new(&ours, Kind::Rollout, 1).seal(session ^ 1, &header, &good),
+        // The NaN chunk is frame 0 of its sender's stream, so the genuine chunk's 1 follows
+        // it and no frame counts as lost; both again, as a recorder of the link would send them.
+        nan_frame.clone(),
+        genuine.clone(),
+        genuine.clone(),
+        nan_frame,
     ];
+    // First the genuine frame under another sim host's key expression.
+    let elsewhere = net
+        .declare_publisher(link::rollout_key(2))
+        .congestion_control(CongestionControl::Block)
+        .wait()
+        .expect("publisher");
+    until(Duration::from_secs(30), "the bridge subscribed", || {
+        elsewhere
+            .matching_status()
+            .wait()
+            .is_ok_and(|m| m.matching())
+    });
+    elsewhere.put(genuine.clone()).wait().expect("put");
+    // A flood from one source is read no further than its share (`net.source-frames-per-s`,
+    // 200) per second.
+    let flood = net
+        .declare_publisher(link::rollout_key(3))
+        .congestion_control(CongestionControl::Block)
+        .wait()
+        .expect("publisher");
+    for i in 0..1000u32 {
+        flood.put(i.to_le_bytes().to_vec()).wait().expect("put");
+    }
     for f in frames {
         publisher.put(f).wait().expect("put");
     }
@@ -147,7 +210,11 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         "wrong key: 1",
         "wrong kind: 1",
         "different message types: 1",
+        "other session: 1",
         "non-finite value: 1",
+        "replayed: 2",
+        "source mismatch: 1",
+        "over the source's rate: ",
     ] {
         assert!(said.contains(counted), "`{counted}` missing from:\n{said}");
     }

@@ -264,3 +264,17 @@ pub fn update_numbers(run_dir: &Path) -> Vec<u64> {
         .filter_map(|l| l.split(',').next()?.parse().ok())
         .collect()
 }
+
+/// `lavatube status`'s section of run `run`.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub fn status_of(run: &str) -> String {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lavatube"))
+        .arg("status")
+        .output()
+        .expect("lavatube status");
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let from = text.find(&format!("run {run}:")).unwrap_or(text.len());
+    let section = &text[from..];
+    let end = section[1..].find("\nrun ").map_or(section.len(), |i| i + 1);
+    section[..end].to_string()
+}

@@ -1,26 +1,30 @@
-//! `[net]`: a run across hosts (DESIGN §9): the shared key that authenticates its frames, and
-//! how a sim host asks for the newest policies.
+//! `[net]`: a run across hosts (DESIGN §9): the shared key that admits hosts and seals their
+//! frames, how a sim host asks for the newest policies, and how much one host may send.
 
 use super::ConfigError;
 use super::range::invalid;
 use super::setting::{count, form, settings};
 use std::path::{Path, PathBuf};
 
-/// The shortest shared secret accepted, bytes: below the MAC's 256-bit key it is weaker than the MAC.
+/// The shortest shared secret accepted, bytes: below the 256-bit keys derived from it, it is
+/// weaker than they are.
 pub const MIN_KEY_BYTES: usize = 32;
 
 settings! {
     /// How the hosts of a run talk to each other.
     pub struct NetConfig {
         /// File with the run's shared secret (at least 32 bytes; every host needs the same
-        /// one); each frame between hosts carries a MAC (keyed BLAKE3) made with it. Required
-        /// across hosts.
+        /// one): only sessions holding it join, and every frame between hosts is sealed
+        /// (AES-256-GCM) under a key derived from it. Required across hosts.
         pub key_file: Option<PathBuf> = None => form("a key file"), "", Essential;
         /// How often a sim host asks for the newest policies until it has them.
         pub policy_query_ms: u64 = 500 => count(50, 60_000), "ms", Advanced;
         /// Sim hosts the learner host trains with: its run ends once each has stepped
         /// `run.total-steps`.
         pub sim_hosts: u32 = 1 => count(1, 1024), "hosts", Essential;
+        /// Rollout frames the learner host reads from one sim host per second; the rest are
+        /// dropped unread and counted, so a flood from one host cannot starve the others.
+        pub source_frames_per_s: u32 = 200 => count(1, 100_000), "frames/s", Advanced;
     }
 }
 

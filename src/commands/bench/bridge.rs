@@ -57,6 +57,8 @@ pub fn measure(
 ) -> anyhow::Result<Bridged> {
     let dir = dir.join("bridge");
     let mut cfg = cfg.clone();
+    // The chunks go back to back, far above a sim host's rate: measured, not rate-limited.
+    cfg.net.source_frames_per_s = 100_000;
     let cfg_path = keyed_config(&dir, &mut cfg)?;
     let endpoint = format!("tcp/127.0.0.1:{}", free_port()?);
     let (learner_run, sim_run) = (format!("{bench_id}-bl"), format!("{bench_id}-bs"));
