@@ -275,6 +275,9 @@ pub fn status_of(run: &str) -> String {
     let text = String::from_utf8_lossy(&out.stdout).into_owned();
     let from = text.find(&format!("run {run}:")).unwrap_or(text.len());
     let section = &text[from..];
-    let end = section[1..].find("\nrun ").map_or(section.len(), |i| i + 1);
+    let end = section
+        .get(1..)
+        .and_then(|rest| rest.find("\nrun "))
+        .map_or(section.len(), |i| i + 1);
     section[..end].to_string()
 }
