@@ -1,4 +1,4 @@
-//! A run across hosts against sessions from outside it (DESIGN §9): one with no credentials
+//! A run across hosts against connections from outside it (DESIGN §9): one with no credentials
 //! and one with another run's. While a sim host feeds a learner host, each listens on every
 //! key for five seconds, asks for every key of the run, declares a sim host's and a learner
 //! host's liveliness token, and publishes forged frames and a flood of 10,000 messages a
@@ -14,7 +14,7 @@ mod support;
 
 const CONFIG: &str = "tests/fixtures/outsiders.toml";
 
-/// A peer session dialling `endpoint` with `password` for user `lavatube`, or with none:
+/// A peer dialling `endpoint` with `password` for user `lavatube`, or with none:
 /// it opens locally and keeps retrying the learner host in the background.
 fn outsider(endpoint: &str, password: Option<&str>) -> zenoh::Session {
     let mut c = zenoh::Config::default();
@@ -37,15 +37,15 @@ fn outsider(endpoint: &str, password: Option<&str>) -> zenoh::Session {
     for (k, v) in settings {
         c.insert_json5(k, &v).expect("outsider config");
     }
-    zenoh::open(c).wait().expect("a peer session opens locally")
+    zenoh::open(c).wait().expect("a peer opens locally")
 }
 
-/// What one outside session got of the run, in bytes, while it listened, asked, declared
+/// What one outside peer got of the run, in bytes, while it listened, asked, declared
 /// tokens, forged and flooded for `listen`.
 fn intrude(net: &zenoh::Session, listen: Duration) -> u64 {
     let got = Arc::new(AtomicU64::new(0));
     let counter = got.clone();
-    // What comes from elsewhere: the session's own flood is delivered to it locally.
+    // What comes from elsewhere: the peer's own flood is delivered to it locally.
     let _all = net
         .declare_subscriber("**")
         .allowed_origin(zenoh::sample::Locality::Remote)
@@ -99,7 +99,7 @@ fn intrude(net: &zenoh::Session, listen: Duration) -> u64 {
 }
 
 #[test]
-fn outside_sessions_neither_read_nor_join_nor_starve_a_run_across_hosts() {
+fn outside_peers_neither_read_nor_join_nor_starve_a_run_across_hosts() {
     let pid = std::process::id();
     let hosts = support::AcrossHosts::new(CONFIG, &format!("out-{pid}"), 1);
     let learner_run = format!("out-l-{pid}");
@@ -128,12 +128,12 @@ fn outside_sessions_neither_read_nor_join_nor_starve_a_run_across_hosts() {
         let got = intrude(&net, Duration::from_secs(5));
         assert_eq!(
             got, 0,
-            "a session with {who} credentials received {got} bytes of the run"
+            "a peer with {who} credentials received {got} bytes of the run"
         );
         assert!(
             net.info().routers_zid().wait().next().is_none()
                 && net.info().peers_zid().wait().next().is_none(),
-            "a session with {who} credentials got connected"
+            "a peer with {who} credentials got connected"
         );
         net.close().wait().expect("close");
     }

@@ -14,12 +14,12 @@
 //! | 4 | source: the sim host's id (rollouts) or the policy slot (policies) |
 //! | 8 | epoch: the sender's random id for this start of its bridge |
 //! | 8 | sequence number, per sender and epoch, from 0 |
-//! | 8 | session: the learner host bridge's random id for this start of the run |
+//! | 8 | start: the learner host bridge's random id for this start of the run |
 //! | header size + element size × elements | the header and elements, as in shared memory, encrypted |
 //! | 16 | AES-256-GCM tag over all of the above |
 //!
 //! Everything before the encrypted part is the AEAD's associated data: an observer sees the
-//! sizes, source, epoch, sequence number and session, never a header, transition or weight.
+//! sizes, source, epoch, sequence number and start, never a header, transition or weight.
 //! Each sender (kind, source, epoch) seals under its own key, derived from the run's secret,
 //! with its sequence number as the nonce, so no nonce repeats under a key.
 //!
@@ -40,7 +40,7 @@ const VERSION: u16 = 3;
 /// BLAKE3's key-derivation context for the run's frame key.
 const KEY_CONTEXT: &str = "lavatube 2026 frame AEAD between hosts, version 3";
 const TYPE_NAME_BYTES: usize = 96;
-/// Where the source, epoch, sequence number and session start.
+/// Where the source, epoch, sequence number and run start begin.
 const STAMP_AT: usize = 4 + 2 + 1 + 1 + TYPE_NAME_BYTES + 4 + 4 + 4;
 /// Bytes before the encrypted part.
 const HEAD_BYTES: usize = STAMP_AT + 4 + 8 + 8 + 8;
@@ -140,13 +140,13 @@ impl std::fmt::Debug for Key {
 }
 
 /// Where a frame sits: who sent it, in which start of its bridge, its place in that sender's
-/// stream, and the run session it belongs to.
+/// stream, and the start of the run it belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Stamp {
     pub source: u32,
     pub epoch: u64,
     pub seq: u64,
-    pub session: u64,
+    pub start: u64,
 }
 
 /// A decoded frame's stamp and header; its elements go to the caller's buffer.
@@ -209,8 +209,8 @@ impl Sealer {
         self.source
     }
 
-    /// The next frame: `header` and `items`, sealed, of run session `session`.
-    pub fn seal<H: Plain, T: Plain>(&mut self, session: u64, header: &H, items: &[T]) -> Vec<u8> {
+    /// The next frame: `header` and `items`, sealed, of run start `start`.
+    pub fn seal<H: Plain, T: Plain>(&mut self, start: u64, header: &H, items: &[T]) -> Vec<u8> {
         let seq = self.next;
         self.next += 1;
         let names = type_names::<H, T>();
@@ -229,7 +229,7 @@ impl Sealer {
         out.extend(self.source.to_le_bytes());
         out.extend(self.epoch.to_le_bytes());
         out.extend(seq.to_le_bytes());
-        out.extend(session.to_le_bytes());
+        out.extend(start.to_le_bytes());
         out.extend(bytes_of(std::slice::from_ref(header)));
         out.extend(bytes_of(items));
         let (aad, data) = out.split_at_mut(HEAD_BYTES);
@@ -242,7 +242,7 @@ impl Sealer {
     }
 }
 
-/// A random id, never 0: a sender's epoch, the run's session.
+/// A random id, never 0: a sender's epoch, a start of the run.
 pub fn new_id() -> u64 {
     let mut b = [0u8; 8];
     // The kernel's random source; if it cannot answer, the clock in nanoseconds still differs
@@ -309,7 +309,7 @@ impl Opener {
             source: u32_at(bytes, STAMP_AT),
             epoch: u64_at(bytes, STAMP_AT + 4),
             seq: u64_at(bytes, STAMP_AT + 12),
-            session: u64_at(bytes, STAMP_AT + 20),
+            start: u64_at(bytes, STAMP_AT + 20),
         };
         let (aad, sealed) = bytes.split_at(HEAD_BYTES);
         let id = (bytes[6], stamp.source, stamp.epoch);
@@ -444,7 +444,7 @@ impl Streams {
         }
     }
 
-    /// Forgets every stream (the run session changed: nothing of the old one can come again
+    /// Forgets every stream (the run started again: nothing of the old start can come again
     /// under the new one).
     pub fn clear(&mut self) {
         *self = Self::default();
@@ -482,7 +482,7 @@ mod tests {
         (h, items)
     }
 
-    const SESSION: u64 = 0x5e55;
+    const START: u64 = 0x5e55;
 
     fn sealer() -> Sealer {
         Sealer::in_epoch(&key(), Kind::Rollout, 3, 77)
@@ -492,7 +492,7 @@ mod tests {
     fn a_frame_round_trips_bit_for_bit_and_hides_what_it_carries() {
         let (h, items) = chunk();
         let mut tx = sealer();
-        let bytes = tx.seal(SESSION, &h, &items);
+        let bytes = tx.seal(START, &h, &items);
         let expected =
             HEAD_BYTES + size_of::<RolloutHeader>() + 3 * size_of::<Transition>() + TAG_BYTES;
         assert_eq!(bytes.len(), expected);
@@ -511,11 +511,11 @@ mod tests {
             source: 3,
             epoch: 77,
             seq: 0,
-            session: SESSION,
+            start: START,
         };
         assert_eq!((f.stamp, f.header), (stamp, h));
         assert_eq!(got, items);
-        let second = tx.seal(SESSION, &h, &items);
+        let second = tx.seal(START, &h, &items);
         assert_ne!(
             second[HEAD_BYTES..],
             bytes[HEAD_BYTES..],
@@ -526,7 +526,7 @@ mod tests {
     #[test]
     fn frames_from_outside_the_run_or_of_other_types_are_refused_by_kind() {
         let (h, items) = chunk();
-        let bytes = sealer().seal(SESSION, &h, &items);
+        let bytes = sealer().seal(START, &h, &items);
         let kind_of = |b: &[u8]| {
             Opener::new(&key())
                 .open::<RolloutHeader, Transition>(Kind::Rollout, b, &mut Vec::new())
@@ -534,7 +534,7 @@ mod tests {
                 .kind
         };
         let other =
-            Sealer::in_epoch(&Key::new(&[1u8; 32]), Kind::Rollout, 3, 77).seal(SESSION, &h, &items);
+            Sealer::in_epoch(&Key::new(&[1u8; 32]), Kind::Rollout, 3, 77).seal(START, &h, &items);
         assert_eq!(kind_of(&other), "wrong key");
         for at in [
             STAMP_AT,
@@ -548,13 +548,13 @@ mod tests {
             assert_eq!(
                 kind_of(&flipped),
                 "wrong key",
-                "a changed byte at {at} (source, epoch, sequence, session or data) breaks the tag"
+                "a changed byte at {at} (source, epoch, sequence, start or data) breaks the tag"
             );
         }
         assert_eq!(kind_of(&bytes[..bytes.len() - 1]), "wrong key");
         assert_eq!(kind_of(&bytes[..10]), "malformed");
         let policy = Sealer::in_epoch(&key(), Kind::Policy, 0, 5).seal(
-            SESSION,
+            START,
             &PolicyHeader::default(),
             &[0.5f32; 4],
         );
@@ -581,7 +581,7 @@ mod tests {
             source,
             epoch,
             seq,
-            session: SESSION,
+            start: START,
         }
     }
 

@@ -24,17 +24,17 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
     let secret = cfg.net.read_key()?;
     let key = Key::new(&secret);
     let net = link::listen(endpoint, &link::Credentials::new(&secret))?;
-    // This start's run session: rollout frames must name it, so none sealed before it (of
+    // This start's id: rollout frames must name it, so none sealed before it (of
     // another run, or of this one before the learner host restarted) is taken.
-    let session = frame::new_id();
+    let start = frame::new_id();
     let _token = net
         .liveliness()
-        .declare_token(link::learner_token(session))
+        .declare_token(link::learner_token(start))
         .wait()
         .map_err(zerr("liveliness token"))?;
     tracing::info!(
         endpoint,
-        session = format!("{session:016x}"),
+        start = format!("{start:016x}"),
         "learner host bridge listening"
     );
     let slots: Vec<PolicySlot> = cfg
@@ -47,8 +47,8 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str) -> anyhow::Result<()> {
     let (net2, key2, run) = (net.clone(), key.clone(), run_id.to_string());
     both_directions(
         "policies",
-        move |stop| forward_policies(&run, &slots, &net2, (&key2, session), stop),
-        |stop| receive_rollouts(cfg, run_id, &net, (&key, session), stop),
+        move |stop| forward_policies(&run, &slots, &net2, (&key2, start), stop),
+        |stop| receive_rollouts(cfg, run_id, &net, (&key, start), stop),
     )
 }
 
@@ -56,7 +56,7 @@ fn forward_policies(
     run_id: &str,
     slots: &[PolicySlot],
     net: &Net,
-    (key, session): (&Key, u64),
+    (key, start): (&Key, u64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "bridge-policies")?;
@@ -69,8 +69,8 @@ fn forward_policies(
             .congestion_control(CongestionControl::Block)
             .wait()
             .map_err(zerr("policy publisher"))?;
-        // Each slot's frames are one stream, in the session's epoch.
-        let sealer = Sealer::in_epoch(key, Kind::Policy, slot.index() as u32, session);
+        // Each slot's frames are one stream, in this start's epoch.
+        let sealer = Sealer::in_epoch(key, Kind::Policy, slot.index() as u32, start);
         ports.push((slot, rx, publisher, sealer));
     }
     let queries = net
@@ -88,7 +88,7 @@ fn forward_policies(
         for (slot, rx, publisher, sealer) in &mut ports {
             while let Some(sample) = rx.try_recv()? {
                 let h = *sample.user_header();
-                let bytes = sealer.seal(session, &h, sample.payload());
+                let bytes = sealer.seal(start, &h, sample.payload());
                 sent.add(bytes.len());
                 publisher
                     .put(bytes.clone())
@@ -220,7 +220,7 @@ fn receive_rollouts(
     cfg: &Config,
     run_id: &str,
     net: &Net,
-    (key, session): (&Key, u64),
+    (key, start): (&Key, u64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "bridge-rollouts")?;
@@ -233,7 +233,7 @@ fn receive_rollouts(
     let sims = link::watch_tokens(net, link::SIM_ALL, 16)?;
     let mut intake = Intake {
         opener: Opener::new(key),
-        session,
+        start,
         streams: Streams::default(),
         budget: Budget::new(cfg.net.source_frames_per_s),
         max_len,
@@ -266,8 +266,8 @@ fn receive_rollouts(
 /// has sent.
 struct Intake {
     opener: Opener,
-    /// This start's run session, which every rollout frame must name.
-    session: u64,
+    /// This start's id, which every rollout frame must name.
+    start: u64,
     /// Which frames of each sim host's stream have come.
     streams: Streams,
     budget: Budget,
@@ -341,12 +341,12 @@ impl Intake {
             }
         };
         let stamp = f.stamp;
-        if stamp.session != self.session {
+        if stamp.start != self.start {
             self.refused.refuse(
-                "other session",
+                "other start",
                 &format!(
-                    "sealed for session {:016x}, not this run's {:016x}",
-                    stamp.session, self.session
+                    "sealed for start {:016x}, not this run's {:016x}",
+                    stamp.start, self.start
                 ),
             );
             return Ok(());

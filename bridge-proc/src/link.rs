@@ -1,9 +1,9 @@
 //! The Zenoh side of a bridge: the connection each side opens, and the key expressions of a
 //! run across hosts (DESIGN §9). The learner host's bridge is a Zenoh router listening on the
 //! run's endpoint; each sim host's bridge is a peer that connects to it, and that Zenoh
-//! reconnects by itself when the learner host comes back. Both take only sessions that prove
-//! they hold the run's credentials (Zenoh's user-password authentication, a challenge and
-//! an HMAC of it, with a password derived from the run's key): a session without them is
+//! reconnects by itself when the learner host comes back. Both take only connections that
+//! prove they hold the run's credentials (Zenoh's user-password authentication, a challenge and
+//! an HMAC of it, with a password derived from the run's key): a connection without them is
 //! closed in its handshake, before it can subscribe, query, publish or declare a token.
 
 use anyhow::Context;
@@ -33,16 +33,16 @@ pub fn sim_token(source: u32) -> String {
 }
 /// Every sim host's liveliness token.
 pub const SIM_ALL: &str = "lavatube/sim/*";
-/// The learner host's liveliness token, naming the run session of this start of its bridge:
-/// a sim host adopts the session and asks for policies again when it appears.
-pub fn learner_token(session: u64) -> String {
-    format!("lavatube/learner/{session:016x}")
+/// The learner host's liveliness token, naming this start of its bridge (a random id): a
+/// sim host adopts the start and asks for policies again when it appears.
+pub fn learner_token(start: u64) -> String {
+    format!("lavatube/learner/{start:016x}")
 }
 /// Every learner host token.
 pub const LEARNER_ALL: &str = "lavatube/learner/*";
 
-/// The session in a learner host's token key, `lavatube/learner/<session>`.
-pub fn token_session(key: &str) -> Option<u64> {
+/// The start in a learner host's token key, `lavatube/learner/<start>`.
+pub fn token_start(key: &str) -> Option<u64> {
     u64::from_str_radix(key.strip_prefix("lavatube/learner/")?, 16).ok()
 }
 
@@ -78,15 +78,15 @@ pub fn token_source(key: &str) -> Option<u32> {
     key.strip_prefix("lavatube/sim/")?.parse().ok()
 }
 
-/// The run's session credentials, derived from its secret: what a session shows (an HMAC of
+/// The run's connection credentials, derived from its secret: what a connection shows (an HMAC of
 /// the listener's challenge under the password) to be let in.
 pub struct Credentials {
     user: &'static str,
     password: String,
 }
 
-/// BLAKE3's key-derivation context for the session password.
-const PASSWORD_CONTEXT: &str = "lavatube 2026 Zenoh session password, version 1";
+/// BLAKE3's key-derivation context for the connection password.
+const PASSWORD_CONTEXT: &str = "lavatube 2026 Zenoh connection password, version 1";
 
 impl Credentials {
     pub fn new(secret: &[u8]) -> Self {
@@ -107,9 +107,9 @@ impl Credentials {
         let mut dictionary = tempfile::Builder::new()
             .prefix("lavatube-usrpwd-")
             .tempfile()
-            .context("cannot write the session dictionary")?;
+            .context("cannot write the password dictionary")?;
         writeln!(dictionary, "{}:{}", self.user, self.password)
-            .context("cannot write the session dictionary")?;
+            .context("cannot write the password dictionary")?;
         let path = dictionary.path().display().to_string();
         let value = format!(
             "{{user: {:?}, password: {:?}, dictionary_file: {path:?}}}",
@@ -120,7 +120,8 @@ impl Credentials {
 }
 
 /// A Zenoh config that stays on the endpoints given (no multicast scouting, no gossip) and
-/// takes only sessions with `credentials`; the dictionary file must live until the session is
+/// takes only connections with `credentials`; the dictionary file must live until the Zenoh
+/// node is
 /// open.
 fn config(
     mode: &str,
@@ -198,7 +199,7 @@ mod tests {
         assert_eq!(token_source(&sim_token(12)), Some(12));
         assert_eq!(token_source("lavatube/sim/x"), None);
         assert_eq!(rollout_key(3), "lavatube/rollout/3");
-        assert_eq!(token_session(&learner_token(0xabc)), Some(0xabc));
-        assert_eq!(token_session("lavatube/learner"), None);
+        assert_eq!(token_start(&learner_token(0xabc)), Some(0xabc));
+        assert_eq!(token_start("lavatube/learner"), None);
     }
 }

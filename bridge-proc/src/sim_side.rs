@@ -3,8 +3,8 @@
 //! (history 1, so a sim that starts late gets the newest weights). Until it has a policy of
 //! every slot it asks the learner host for the newest ones, and asks again whenever the
 //! learner host (re)appears, so a host that joins mid-run acts within a second. It takes the
-//! run session from the learner host's token, seals its chunks for that session and takes
-//! policies of that session only; until it has one, its chunks wait. Once the sim's last
+//! run's start id from the learner host's token, seals its chunks for that start and takes
+//! policies of that start only; until it has one, its chunks wait. Once the sim's last
 //! chunk (`run.total-steps`) is out, the bridge closes its Zenoh connection, which sends
 //! what is still queued, and exits.
 
@@ -36,16 +36,16 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
         .wait()
         .map_err(zerr("liveliness token"))?;
     tracing::info!(endpoint, source, "sim host bridge up");
-    // The learner host's run session, 0 until its token has been seen.
-    let session = Arc::new(AtomicU64::new(0));
+    // The learner host's start id, 0 until its token has been seen.
+    let start = Arc::new(AtomicU64::new(0));
     let (net2, run) = (net.clone(), run_id.to_string());
     let sealer = Sealer::new(&key, Kind::Rollout, source);
     let total = cfg.run.total_steps;
-    let seen = session.clone();
+    let seen = start.clone();
     let ran = both_directions(
         "rollouts",
         move |stop| forward_rollouts(&run, &net2, sealer, (&seen, total), stop),
-        |stop| receive_policies(cfg, run_id, &net, (&key, &session), stop),
+        |stop| receive_policies(cfg, run_id, &net, (&key, &start), stop),
     );
     net.close()
         .wait()
@@ -54,12 +54,12 @@ pub fn run(cfg: &Config, run_id: &str, endpoint: &str, source: u32) -> anyhow::R
 }
 
 /// Forwards the sim's chunks, sealed by `sealer` (this host's source) for the learner host's
-/// current session, until the run stops or the chunk that completes `total` env steps is out.
+/// current start, until the run stops or the chunk that completes `total` env steps is out.
 fn forward_rollouts(
     run_id: &str,
     net: &Net,
     mut sealer: Sealer,
-    (session, total): (&AtomicU64, u64),
+    (start, total): (&AtomicU64, u64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let source = sealer.source();
@@ -79,8 +79,8 @@ fn forward_rollouts(
         if !stopping {
             rx.wait(Duration::from_millis(100))?;
         }
-        // No chunk leaves before the learner host's session is known: it would be refused.
-        let now = session.load(Ordering::Relaxed);
+        // No chunk leaves before the learner host's start is known: it would be refused.
+        let now = start.load(Ordering::Relaxed);
         if now == 0 {
             last_out |= stopping;
             continue;
@@ -117,7 +117,7 @@ struct Republisher {
     /// The weights of the frame being checked.
     items: Vec<f32>,
     opener: Opener,
-    /// Which frames of each slot's stream have come, this session.
+    /// Which frames of each slot's stream have come, this start.
     streams: Streams,
 }
 
@@ -144,8 +144,8 @@ impl Republisher {
         self.last.len() == self.senders.len()
     }
 
-    /// Checks one frame of run session `session` and republishes its policy.
-    fn take(&mut self, session: u64, bytes: &[u8]) -> anyhow::Result<()> {
+    /// Checks one frame of run start `start` and republishes its policy.
+    fn take(&mut self, start: u64, bytes: &[u8]) -> anyhow::Result<()> {
         self.received.add(bytes.len());
         let f = match self
             .opener
@@ -157,12 +157,12 @@ impl Republisher {
                 return Ok(());
             }
         };
-        if f.stamp.session != session {
+        if f.stamp.start != start {
             self.refused.refuse(
-                "other session",
+                "other start",
                 &format!(
-                    "sealed for session {:016x}, not the learner host's {session:016x}",
-                    f.stamp.session
+                    "sealed for start {:016x}, not the learner host's {start:016x}",
+                    f.stamp.start
                 ),
             );
             return Ok(());
@@ -211,7 +211,7 @@ fn receive_policies(
     cfg: &Config,
     run_id: &str,
     net: &Net,
-    (key, session): (&Key, &AtomicU64),
+    (key, start): (&Key, &AtomicU64),
     stop: &Stop,
 ) -> anyhow::Result<()> {
     let bus = Bus::connect(run_id, "bridge-policies")?;
@@ -228,23 +228,23 @@ fn receive_policies(
             tx.update_connections()?;
         }
         while let Some(s) = learner_host.try_recv().map_err(zerr("liveliness"))? {
-            let Some(id) = link::token_session(s.key_expr().as_str()) else {
+            let Some(id) = link::token_start(s.key_expr().as_str()) else {
                 continue;
             };
             if s.kind() == SampleKind::Put {
                 tracing::info!(
-                    session = format!("{id:016x}"),
+                    start = format!("{id:016x}"),
                     "learner host reachable: asking for the newest policies"
                 );
-                session.store(id, Ordering::Relaxed);
+                start.store(id, Ordering::Relaxed);
                 local.last.clear();
                 local.streams.clear();
                 next_query = Instant::now();
-            } else if id == session.load(Ordering::Relaxed) {
+            } else if id == start.load(Ordering::Relaxed) {
                 tracing::warn!("learner host gone: the sim keeps acting on its last policies");
             }
         }
-        let now = session.load(Ordering::Relaxed);
+        let now = start.load(Ordering::Relaxed);
         if now != 0 && !local.complete() && Instant::now() >= next_query {
             let replies = net
                 .get(link::POLICY_ALL)

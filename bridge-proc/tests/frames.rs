@@ -1,7 +1,7 @@
 //! A learner host's bridge, run as its real process, against what reaches it (DESIGN §9): a
-//! session without the run's credentials is not let in; from one with them, frames with a
+//! connection without the run's credentials is not let in; from one with them, frames with a
 //! wrong key, of another kind, of other message types, with non-finite numbers, sealed for
-//! another session, sent again, under another source, or past a source's share of a second
+//! another start of the run, sent again, under another source, or past a source's share of a second
 //! are refused and counted, and a genuine chunk sent among them still reaches the learner
 //! host's shared memory, bit for bit, once.
 
@@ -64,7 +64,7 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         .spawn()
         .expect("bridge-proc starts");
 
-    // Without the run's credentials, or with another run's, no session opens.
+    // Without the run's credentials, or with another run's, no connection opens.
     for (who, password) in [("no", None), ("wrong", Some("another run's password"))] {
         let mut outsider = zenoh::Config::default();
         let mut settings = vec![
@@ -84,24 +84,20 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         }
         assert!(
             zenoh::open(outsider).wait().is_err(),
-            "a session with {who} credentials was let in"
+            "a connection with {who} credentials was let in"
         );
     }
 
     let net = link::connect(&endpoint, &link::Credentials::new(SECRET)).expect("net");
     let learner = link::watch_tokens(&net, link::LEARNER_ALL, 8).expect("tokens");
-    let mut session = None;
-    until(
-        Duration::from_secs(30),
-        "the learner host's session",
-        || {
-            if let Ok(Some(s)) = learner.try_recv() {
-                session = link::token_session(s.key_expr().as_str());
-            }
-            session.is_some()
-        },
-    );
-    let session = session.expect("a session");
+    let mut start = None;
+    until(Duration::from_secs(30), "the learner host's start", || {
+        if let Ok(Some(s)) = learner.try_recv() {
+            start = link::token_start(s.key_expr().as_str());
+        }
+        start.is_some()
+    });
+    let start = start.expect("a start");
     let publisher = net
         .declare_publisher(link::rollout_key(1))
         .congestion_control(CongestionControl::Block)
@@ -136,20 +132,29 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
     let ours = Key::new(SECRET);
     let mut sealer = Sealer::new(&ours, Kind::Rollout, 1);
     let (nan_frame, genuine) = (
-        sealer.seal(session, &header, &nan),
-        sealer.seal(session, &header, &good),
+        sealer.seal(start, &header, &nan),
+        sealer.seal(start, &header, &good),
     );
+    // The next chunk of the stream closes the test's frames: once it is through, the bridge
+    // has read every frame sent before it on this key.
+    let last = RolloutHeader {
+        chunk: 1,
+        env_steps: 2 * header.env_steps,
+        ..header
+    };
+    let closing = sealer.seal(start, &last, &good);
     let frames = [
-        Sealer::new(&Key::new(&[9u8; 32]), Kind::Rollout, 1).seal(session, &header, &good),
-        Sealer::new(&ours, Kind::Policy, 1).seal(session, &header, &good),
-        Sealer::new(&ours, Kind::Rollout, 1).seal(session, &PolicyHeader::default(), &[0.5f32; 8]),
-        Sealer::new(&ours, Kind::Rollout, 1).seal(session ^ 1, &header, &good),
+        Sealer::new(&Key::new(&[9u8; 32]), Kind::Rollout, 1).seal(start, &header, &good),
+        Sealer::new(&ours, Kind::Policy, 1).seal(start, &header, &good),
+        Sealer::new(&ours, Kind::Rollout, 1).seal(start, &PolicyHeader::default(), &[0.5f32; 8]),
+        Sealer::new(&ours, Kind::Rollout, 1).seal(start ^ 1, &header, &good),
         // The NaN chunk is frame 0 of its sender's stream, so the genuine chunk's 1 follows
         // it and no frame counts as lost; both again, as a recorder of the link would send them.
         nan_frame.clone(),
         genuine.clone(),
         genuine.clone(),
         nan_frame,
+        closing,
     ];
     // First the genuine frame under another sim host's key expression.
     let elsewhere = net
@@ -178,25 +183,34 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         publisher.put(f).wait().expect("put");
     }
 
-    let mut received = None;
-    until(Duration::from_secs(30), "the genuine chunk arrived", || {
-        let _ = chunks.wait(Duration::from_millis(10));
-        if let Some(s) = chunks.try_recv().expect("receive") {
-            received = Some((*s.user_header(), s.payload().to_vec()));
-        }
-        received.is_some()
-    });
-    let (h, items) = received.expect("a chunk");
-    assert_eq!(h, header);
+    let mut received = Vec::new();
+    until(
+        Duration::from_secs(30),
+        "the genuine and the closing chunk arrived",
+        || {
+            let _ = chunks.wait(Duration::from_millis(10));
+            while let Some(s) = chunks.try_recv().expect("receive") {
+                received.push((*s.user_header(), s.payload().to_vec()));
+            }
+            received.len() >= 2
+        },
+    );
+    let heads: Vec<RolloutHeader> = received.iter().map(|(h, _)| *h).collect();
+    assert_eq!(
+        heads,
+        [header, last],
+        "only the genuine chunk, once, then the closing one"
+    );
     assert!(
-        items
+        received[0]
+            .1
             .iter()
             .zip(&good)
             .all(|(a, b)| a.reward.to_bits() == b.reward.to_bits() && a.env == b.env)
     );
     assert!(
         chunks.try_recv().expect("receive").is_none(),
-        "only the genuine chunk"
+        "nothing after the closing chunk"
     );
 
     ipc::request_shutdown(&control).expect("shutdown");
@@ -210,7 +224,7 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         "wrong key: 1",
         "wrong kind: 1",
         "different message types: 1",
-        "other session: 1",
+        "other start: 1",
         "non-finite value: 1",
         "replayed: 2",
         "source mismatch: 1",

@@ -14,7 +14,7 @@ settings! {
     /// How the hosts of a run talk to each other.
     pub struct NetConfig {
         /// File with the run's shared secret (at least 32 bytes; every host needs the same
-        /// one): only sessions holding it join, and every frame between hosts is sealed
+        /// one): only hosts holding it join, and every frame between hosts is sealed
         /// (AES-256-GCM) under a key derived from it. Required across hosts.
         pub key_file: Option<PathBuf> = None => form("a key file"), "", Essential;
         /// How often a sim host asks for the newest policies until it has them.
