@@ -6,6 +6,7 @@
 
 use crate::directions::{Counts, Stop, both_directions};
 use crate::frame::{self, Key, Kind, Opener, Place, Sealer, Streams};
+use crate::gate::Door;
 use crate::link::{self, Net, zerr};
 use common::config::PolicySlot;
 use common::ipc::{self, Bus, Receiver, Sender};
@@ -241,6 +242,8 @@ fn receive_rollouts(
         hosts_tx,
         hosts: BTreeMap::new(),
         refused: Refusals::new("rollout frame"),
+        door: Door::default(),
+        connections: Refusals::new("connection"),
         items: Vec::with_capacity(max_len),
         logged: Instant::now(),
         published: Instant::now(),
@@ -277,6 +280,9 @@ struct Intake {
     hosts_tx: Sender<SimHost, HostsHeader>,
     hosts: BTreeMap<u32, Host>,
     refused: Refusals,
+    door: Door,
+    /// Connections the handshake refused, by kind.
+    connections: Refusals,
     /// One chunk's elements, decoded into the same memory every time.
     items: Vec<Transition>,
     logged: Instant,
@@ -288,6 +294,7 @@ impl Intake {
     /// [`PUBLISH_EVERY`].
     fn report_hosts(&mut self) -> anyhow::Result<()> {
         self.hosts_tx.update_connections()?;
+        self.door.take(&mut self.connections);
         if self.logged.elapsed() >= LOG_EVERY {
             log_hosts(&mut self.hosts, self.logged.elapsed().as_secs_f64());
             self.logged = Instant::now();
@@ -424,6 +431,10 @@ impl Intake {
                 "rollout frames received"
             );
         }
-        tracing::info!(refused = %self.refused.summary(), "learner host bridge done");
+        tracing::info!(
+            refused = %self.refused.summary(),
+            refused_connections = %self.connections.summary(),
+            "learner host bridge done"
+        );
     }
 }

@@ -5,6 +5,7 @@
 //!
 //! - [`frame`]: a message as bytes: type names and sizes, source, sequence number, MAC.
 //! - [`link`]: the Zenoh connections and key expressions.
+//! - [`gate`]: connections Zenoh's handshake refused, counted by kind.
 //! - [`sim_side`]: on a sim host, chunks out, policies in.
 //! - [`learner_side`]: on the learner host, chunks in, policies out.
 //!
@@ -19,6 +20,7 @@
 pub mod cli;
 mod directions;
 pub mod frame;
+pub mod gate;
 pub mod learner_side;
 pub mod link;
 pub mod sim_side;
@@ -38,7 +40,7 @@ where
         Ok(cli) => cli,
         Err(code) => return code,
     };
-    common::logging::init();
+    common::logging::init_with(Some(gate::layer()));
     // A bad config is the user's to fix; anything else is unexpected.
     common::cli::exit(cli::run(&cli), |_: &common::config::ConfigError| true)
 }

@@ -22,9 +22,18 @@ impl Refusals {
 
     /// Counts one refused message of `kind`; logs a warning the first time of each kind.
     pub fn refuse(&mut self, kind: &'static str, detail: &str) {
+        self.refuse_many(kind, 1, detail);
+    }
+
+    /// Counts `count` refused messages of `kind`; logs a warning the first time of each kind.
+    pub fn refuse_many(&mut self, kind: &'static str, count: u64, detail: &str) {
+        if count == 0 {
+            return;
+        }
         let n = self.counts.entry(kind).or_default();
-        *n += 1;
-        if *n == 1 {
+        let first = *n == 0;
+        *n += count;
+        if first {
             tracing::warn!(
                 what = self.what,
                 kind,
@@ -69,5 +78,8 @@ mod tests {
         assert_eq!(r.count("wrong length"), 1);
         assert_eq!(r.count("other"), 0);
         assert_eq!(r.summary(), "non-finite value: 2, wrong length: 1");
+        r.refuse_many("wrong length", 5, "a batch");
+        r.refuse_many("other", 0, "nothing");
+        assert_eq!(r.summary(), "non-finite value: 2, wrong length: 6");
     }
 }
