@@ -57,6 +57,15 @@ pub struct TelemetryRow {
     pub imu_theta_z: f64,
     #[serde(default = "not_recorded")]
     pub imu_sin_pitch: f64,
+    /// The terrain kind of the estimate the sim held when it chose this tick's action (the
+    /// estimator's newest class); empty before an env's first estimate and without an
+    /// estimator.
+    #[serde(default)]
+    pub estimate: Option<crate::AreaKind>,
+    /// The policy slot that chose this tick's action; empty when no policy of the sim's did
+    /// (a scripted controller, a gym client).
+    #[serde(default)]
+    pub slot: Option<crate::config::PolicySlot>,
 }
 
 /// A column the recording does not have.
@@ -91,9 +100,15 @@ pub enum TelemetryError {
 }
 
 impl TelemetryRow {
-    /// Columns a telemetry CSV may lack; they read as NaN.
-    pub const OPTIONAL_COLUMNS: &[&str] =
-        &["imu_theta_x", "imu_theta_y", "imu_theta_z", "imu_sin_pitch"];
+    /// Columns a telemetry CSV may lack; they read as NaN (the IMU's) or empty.
+    pub const OPTIONAL_COLUMNS: &[&str] = &[
+        "imu_theta_x",
+        "imu_theta_y",
+        "imu_theta_z",
+        "imu_sin_pitch",
+        "estimate",
+        "slot",
+    ];
 
     /// This row with the IMU filter's attitude in place of the true one (`theta_*` and
     /// `sin_pitch`), for an analysis with `estimator.signal = "imu"`.

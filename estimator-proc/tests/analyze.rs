@@ -53,6 +53,7 @@ fn write_kinds(dir: &Path, kinds: &[AreaKind], seed: u64) -> PathBuf {
                 imu_theta_y: 0.0,
                 imu_theta_z: theta_z,
                 imu_sin_pitch: *p + 0.001 * rng.normal(),
+                ..TelemetryRow::default()
             })
             .expect("row");
         }

@@ -139,6 +139,11 @@ impl Driver {
         }
     }
 
+    /// The slot that chose env `i`'s last action.
+    pub fn slot(&self, i: usize) -> PolicySlot {
+        self.chosen[i].slot
+    }
+
     /// Appends each env's bootstrap observation (the chunk's tail, DESIGN §2).
     pub fn bootstrap(&self, chunk: &mut Vec<Transition>) {
         chunk.extend(self.obs.iter().enumerate().map(|(i, o)| Transition {

@@ -7,6 +7,7 @@ use crate::driver::Driver;
 use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::track::SimTrack;
 use common::Config;
+use common::config::{Acting, PolicySlot};
 use common::ipc::{self, Bus, Receiver, Sender};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
 use std::path::Path;
@@ -28,6 +29,8 @@ pub struct TickOutputs {
     track: Option<SimTrack>,
     /// The estimator's newest class per env (`CLASS_UNKNOWN` before its first estimate).
     pub classes: Vec<u8>,
+    /// Whether the sim's policies act (not a gym client), so the CSV names their slots.
+    policies_act: bool,
     ticks: Vec<EnvTick>,
     tick: u64,
 }
@@ -44,6 +47,7 @@ impl TickOutputs {
             csv: files.telemetry.map(TelemetryCsv::append).transpose()?,
             track: files.track.map(|p| SimTrack::append(p, n)).transpose()?,
             classes: vec![wire::CLASS_UNKNOWN; n],
+            policies_act: cfg.sim.acting != Acting::External,
             ticks: vec![EnvTick::default(); n],
             tick: 0,
         })
@@ -60,8 +64,10 @@ impl TickOutputs {
     ) -> anyhow::Result<()> {
         let n = fleet.len();
         if let Some(csv) = self.csv.as_mut() {
-            for (env, info) in fleet.envs.iter().zip(&driver.infos) {
-                csv.write(&telemetry_row(env, info))?;
+            for (i, (env, info)) in fleet.envs.iter().zip(&driver.infos).enumerate() {
+                let estimate = PolicySlot::for_class(self.classes[i]).and_then(PolicySlot::kind);
+                let slot = self.policies_act.then(|| driver.slot(i));
+                csv.write(&telemetry_row(env, info, (estimate, slot)))?;
             }
         }
         if let Some(est) = self.terrain_rx.latest()? {

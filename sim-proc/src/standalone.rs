@@ -64,7 +64,7 @@ pub fn drive(
         std::mem::swap(&mut obs, &mut next);
         for (i, env) in fleet.envs.iter().enumerate() {
             let info = &infos[i];
-            sink(&telemetry_row(env, info), &obs[i])?;
+            sink(&telemetry_row(env, info, (None, None)), &obs[i])?;
             if let Some(end) = info.ending {
                 s.episodes
                     .record(end == Ending::Success, u64::from(info.episode_steps));

@@ -5,10 +5,16 @@ use crate::SimError;
 use crate::env::{Env, StepInfo};
 use crate::task::Ending;
 use common::TelemetryRow;
+use common::config::{AreaKind, PolicySlot};
 use std::path::{Path, PathBuf};
 
-/// One telemetry row for an env after a step.
-pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
+/// One telemetry row for an env after a step: `acted` is the estimate's kind the sim held
+/// when it chose the step's action and the policy slot that chose it, when it has them.
+pub fn telemetry_row(
+    env: &Env,
+    info: &StepInfo,
+    (estimate, slot): (Option<AreaKind>, Option<PolicySlot>),
+) -> TelemetryRow {
     let p = env.pose();
     let imu = env.imu_euler().unwrap_or([f64::NAN; 3]);
     let [l, r] = env.action();
@@ -36,6 +42,8 @@ pub fn telemetry_row(env: &Env, info: &StepInfo) -> TelemetryRow {
         imu_theta_y: imu[1],
         imu_theta_z: imu[2],
         imu_sin_pitch: imu[0].sin(),
+        estimate,
+        slot,
     }
 }
 

@@ -120,3 +120,24 @@ fn bad_values_name_line_and_column() {
         Err(TelemetryError::Read { .. })
     ));
 }
+
+#[test]
+fn the_estimate_and_slot_columns_are_optional_and_empty_without_one() {
+    let row = "0,0,flat,0,0,0,0,0.1,0.2,0.3,0.0998,0,0,0,false,false,false,0,0";
+    let old = parse(&format!("{HEADER}\n{row}\n")).expect("without the columns");
+    assert_eq!((old[0].estimate, old[0].slot), (None, None));
+    let new = parse(&format!(
+        "{HEADER},estimate,slot\n{row},rough,flat\n{row},,general\n{row},,\n"
+    ))
+    .expect("with the columns");
+    let got: Vec<_> = new.iter().map(|r| (r.estimate, r.slot)).collect();
+    use crate::config::PolicySlot;
+    assert_eq!(
+        got,
+        [
+            (Some(crate::AreaKind::Rough), Some(PolicySlot::Flat)),
+            (None, Some(PolicySlot::General)),
+            (None, None)
+        ]
+    );
+}
