@@ -7,6 +7,7 @@
 pub mod cli;
 pub mod clock;
 pub mod config;
+pub mod coverage;
 pub mod episode;
 pub mod ipc;
 pub mod logging;

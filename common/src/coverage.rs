@@ -1,0 +1,190 @@
+//! How much of a switching run acted on live terrain estimates (docs/EXPERIMENT.md E19),
+//! counted from its telemetry CSV's `estimate` and `slot` columns:
+//!
+//! - **with an estimate**: of each env's decision ticks from its first estimate on, the share
+//!   on which the sim held one;
+//! - **acting on it**: of the ticks whose estimate had held for the dwell the switch needs to
+//!   leave the slot it was in (SPEC S8), the share acted by that estimate's specialist;
+//! - **switches per 100 m**: changes of the acting slot per 100 m driven (placements' jumps
+//!   are not driven);
+//! - **detection delay**, per kind: at every crossing into ground of a kind (the true ground
+//!   changed between two ticks of an env, by driving or by a placement), the ticks until its
+//!   specialist acts; a crossing left before that is missed.
+
+use crate::TelemetryRow;
+use crate::config::{AreaKind, PolicySlot};
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// A switching run's coverage: see the module's definitions.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Coverage {
+    /// Decision ticks counted: each env's from its first estimate on.
+    pub ticks: u64,
+    /// Of `ticks`, the share with an estimate.
+    pub with_estimate: f64,
+    /// Ticks whose estimate had held for the dwell.
+    pub settled: u64,
+    /// Of `settled`, the share acted by the estimate's specialist.
+    pub acting_on_estimate: f64,
+    pub switches: u64,
+    /// Metres driven (between consecutive ticks of an episode).
+    pub metres: f64,
+    pub switches_per_100m: f64,
+    /// Per kind crossed into: crossings, how many its specialist acted on, and the delay.
+    pub crossings: BTreeMap<AreaKind, Crossings>,
+}
+
+/// The crossings into one kind's ground.
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize)]
+pub struct Crossings {
+    pub crossings: u64,
+    /// Crossings on which the kind's specialist acted before the robot left the ground.
+    pub detected: u64,
+    /// Mean ticks from the crossing's tick (0) to the first its specialist acted on, over
+    /// the detected ones; 0 without one.
+    pub mean_delay_ticks: f64,
+}
+
+/// One env's count as the rows go by.
+#[derive(Debug, Clone, Default)]
+struct EnvCount {
+    last: Option<TelemetryRow>,
+    started: bool,
+    /// The current estimate and the ticks it has held, this one included.
+    held: Option<(AreaKind, u32)>,
+    /// The kind crossed into and the ticks since, while its specialist has not acted.
+    waiting: Option<(AreaKind, u64)>,
+}
+
+/// Counts coverage over telemetry rows (any env order), leaving a slot after `dwell(slot)`
+/// ticks of a new estimate as the switch does.
+pub struct Counter<F: Fn(PolicySlot) -> u32> {
+    dwell: F,
+    envs: BTreeMap<u32, EnvCount>,
+    ticks: u64,
+    estimated: u64,
+    settled: u64,
+    agreed: u64,
+    switches: u64,
+    metres: f64,
+    crossings: BTreeMap<AreaKind, (Crossings, u64)>,
+}
+
+impl<F: Fn(PolicySlot) -> u32> Counter<F> {
+    pub fn new(dwell: F) -> Self {
+        Self {
+            dwell,
+            envs: BTreeMap::new(),
+            ticks: 0,
+            estimated: 0,
+            settled: 0,
+            agreed: 0,
+            switches: 0,
+            metres: 0.0,
+            crossings: BTreeMap::new(),
+        }
+    }
+
+    /// Takes one row.
+    pub fn see(&mut self, row: &TelemetryRow) {
+        let mut env = self.envs.remove(&row.env).unwrap_or_default();
+        if let Some(last) = &env.last {
+            if last.episode == row.episode {
+                self.metres += (row.x - last.x).hypot(row.z - last.z);
+            }
+            if last.slot.is_some() && row.slot.is_some() && last.slot != row.slot {
+                self.switches += 1;
+            }
+            if last.area != row.area {
+                if let Some((kind, _)) = env.waiting.take() {
+                    self.crossings.entry(kind).or_default().0.crossings += 1;
+                }
+                env.waiting = Some((row.area, 0));
+            }
+        }
+        self.count_estimate(&mut env, row);
+        self.count_detection(&mut env, row);
+        env.last = Some(row.clone());
+        self.envs.insert(row.env, env);
+    }
+
+    fn count_estimate(&mut self, env: &mut EnvCount, row: &TelemetryRow) {
+        env.held = row.estimate.map(|k| match env.held {
+            Some((held, n)) if held == k => (k, n + 1),
+            _ => (k, 1),
+        });
+        env.started |= row.estimate.is_some();
+        if !env.started {
+            return;
+        }
+        self.ticks += 1;
+        let Some((kind, held)) = env.held else {
+            return;
+        };
+        self.estimated += 1;
+        let specialist = PolicySlot::ALL.into_iter().find(|s| s.kind() == Some(kind));
+        let leaving = env.last.as_ref().and_then(|l| l.slot).or(row.slot);
+        if let (Some(specialist), Some(from)) = (specialist, leaving) {
+            if from == specialist || held >= (self.dwell)(from) {
+                self.settled += 1;
+                self.agreed += u64::from(row.slot == Some(specialist));
+            }
+        }
+    }
+
+    fn count_detection(&mut self, env: &mut EnvCount, row: &TelemetryRow) {
+        let Some((kind, since)) = env.waiting else {
+            return;
+        };
+        if row.slot.and_then(PolicySlot::kind) == Some(kind) {
+            let (c, delays) = self.crossings.entry(kind).or_default();
+            c.crossings += 1;
+            c.detected += 1;
+            *delays += since;
+            env.waiting = None;
+        } else {
+            env.waiting = Some((kind, since + 1));
+        }
+    }
+
+    /// The coverage of every row seen; crossings still waiting at the end count as missed.
+    pub fn finish(mut self) -> Coverage {
+        for env in self.envs.values() {
+            if let Some((kind, _)) = env.waiting {
+                self.crossings.entry(kind).or_default().0.crossings += 1;
+            }
+        }
+        let share = |n: u64, of: u64| if of == 0 { 0.0 } else { n as f64 / of as f64 };
+        Coverage {
+            ticks: self.ticks,
+            with_estimate: share(self.estimated, self.ticks),
+            settled: self.settled,
+            acting_on_estimate: share(self.agreed, self.settled),
+            switches: self.switches,
+            metres: self.metres,
+            switches_per_100m: if self.metres > 0.0 {
+                100.0 * self.switches as f64 / self.metres
+            } else {
+                0.0
+            },
+            crossings: self
+                .crossings
+                .into_iter()
+                .map(|(k, (c, delays))| {
+                    let mean = share(delays, c.detected);
+                    (
+                        k,
+                        Crossings {
+                            mean_delay_ticks: mean,
+                            ..c
+                        },
+                    )
+                })
+                .collect(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;
