@@ -46,6 +46,24 @@ pub struct Crossings {
     pub mean_delay_ticks: f64,
 }
 
+impl Coverage {
+    /// The coverage of the telemetry CSVs at `paths`, each its own recording, of a run that
+    /// switched as `sim` says ([`crate::config::SimConfig::dwell_leaving`]).
+    pub fn of_files(
+        paths: &[std::path::PathBuf],
+        sim: &crate::config::SimConfig,
+    ) -> Result<Self, crate::telemetry::TelemetryError> {
+        let mut counter = Counter::new(|s| sim.dwell_leaving(s));
+        for path in paths {
+            for row in crate::telemetry::TelemetryReader::open(path)? {
+                counter.see(&row?.1);
+            }
+            counter.end_recording();
+        }
+        Ok(counter.finish())
+    }
+}
+
 /// One env's count as the rows go by.
 #[derive(Debug, Clone, Default)]
 struct EnvCount {
@@ -105,7 +123,7 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
         }
         self.count_estimate(&mut env, row);
         self.count_detection(&mut env, row);
-        env.last = Some(row.clone());
+        env.last = Some(*row);
         self.envs.insert(row.env, env);
     }
 
@@ -125,11 +143,11 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
         self.estimated += 1;
         let specialist = PolicySlot::ALL.into_iter().find(|s| s.kind() == Some(kind));
         let leaving = env.last.as_ref().and_then(|l| l.slot).or(row.slot);
-        if let (Some(specialist), Some(from)) = (specialist, leaving) {
-            if from == specialist || held >= (self.dwell)(from) {
-                self.settled += 1;
-                self.agreed += u64::from(row.slot == Some(specialist));
-            }
+        if let (Some(specialist), Some(from)) = (specialist, leaving)
+            && (from == specialist || held >= (self.dwell)(from))
+        {
+            self.settled += 1;
+            self.agreed += u64::from(row.slot == Some(specialist));
         }
     }
 
@@ -148,13 +166,19 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
         }
     }
 
-    /// The coverage of every row seen; crossings still waiting at the end count as missed.
-    pub fn finish(mut self) -> Coverage {
-        for env in self.envs.values() {
+    /// Ends a recording: its crossings still waiting count as missed, and the next rows
+    /// (another recording's, whose env ids start again) start every env afresh.
+    pub fn end_recording(&mut self) {
+        for env in std::mem::take(&mut self.envs).into_values() {
             if let Some((kind, _)) = env.waiting {
                 self.crossings.entry(kind).or_default().0.crossings += 1;
             }
         }
+    }
+
+    /// The coverage of every row seen; crossings still waiting at the end count as missed.
+    pub fn finish(mut self) -> Coverage {
+        self.end_recording();
         let share = |n: u64, of: u64| if of == 0 { 0.0 } else { n as f64 / of as f64 };
         Coverage {
             ticks: self.ticks,

@@ -179,8 +179,7 @@ pub fn serve(cfg: &Config, run_id: &str, part: &RunPart) -> anyhow::Result<()> {
     let seed = common::Rng::source_seed(cfg.run.seed, part.source);
     let fleet = Fleet::new(&cfg.sim, &terrain, seed);
     let mut inbox = Inbox::connect(&bus, seed, !cfg.sim.mean_actions)?;
-    let switcher = Switcher::new(cfg.sim.acting, cfg.sim.switch_dwell, n)
-        .with_leave_dwell(&cfg.sim.leave_dwell);
+    let switcher = Switcher::new(cfg.sim.acting, |s| cfg.sim.dwell_leaving(s), n);
     tracing::info!(envs = n, rollout_steps = t_steps, mode = ?cfg.run.mode, acting = ?cfg.sim.acting, "waiting for the first policy");
     if !first_policy(&mut inbox, &stop_requested)? {
         return Ok(());

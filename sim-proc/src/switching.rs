@@ -5,7 +5,6 @@
 
 use crate::controllers::{Actor, PolicyController};
 use common::config::{Acting, PolicySlot};
-use std::collections::BTreeMap;
 
 /// The sim's policies, one per slot, with the version each acts at.
 pub struct PolicySet {
@@ -83,24 +82,17 @@ pub struct Switcher {
 }
 
 impl Switcher {
-    pub fn new(acting: Acting, dwell: usize, envs: usize) -> Self {
+    /// Each of `envs` envs acting under `acting`; leaving a slot takes `dwell(slot)` ticks of
+    /// a new estimate ([`common::config::SimConfig::dwell_leaving`]).
+    pub fn new(acting: Acting, dwell: impl Fn(PolicySlot) -> u32, envs: usize) -> Self {
         let start = acting.fixed().unwrap_or(PolicySlot::General);
         Self {
             fixed: acting.fixed(),
-            dwell: [dwell.max(1) as u32; PolicySlot::ALL.len()],
+            dwell: PolicySlot::ALL.map(dwell),
             current: vec![start; envs],
             candidate: vec![None; envs],
             held: vec![0; envs],
         }
-    }
-
-    /// Leaving a slot named in `leave` takes that many ticks of a new estimate instead of
-    /// the dwell (`sim.leave-dwell`).
-    pub fn with_leave_dwell(mut self, leave: &BTreeMap<PolicySlot, usize>) -> Self {
-        for (slot, &ticks) in leave {
-            self.dwell[slot.index()] = ticks.max(1) as u32;
-        }
-        self
     }
 
     /// Takes one tick of estimator classes (one per env; unknown classes change nothing) and
@@ -143,13 +135,14 @@ mod tests {
     use common::AreaKind;
     use common::wire::CLASS_UNKNOWN;
     use common::{ACT_DIM, OBS_DIM, Policy, PolicyLayout};
+    use std::collections::BTreeMap;
 
     /// SPEC S8: a new estimate must hold `dwell` ticks; a flicker restarts the count; unknown
     /// classes neither switch nor reset.
     #[test]
     fn switching_waits_for_the_dwell_time() {
         use PolicySlot::{Flat, General, Rough};
-        let mut s = Switcher::new(Acting::Switch, 3, 1);
+        let mut s = Switcher::new(Acting::Switch, |_| 3, 1);
         let mut seen = Vec::new();
         for class in [CLASS_UNKNOWN, 0, 0, 0, 1, 1, 0, 1, 1, CLASS_UNKNOWN, 1] {
             seen.push(s.update(&[class])[0]);
@@ -160,7 +153,7 @@ mod tests {
                 General, General, General, Flat, Flat, Flat, Flat, Flat, Flat, Flat, Rough
             ]
         );
-        let mut fixed = Switcher::new(Acting::Rough, 1, 2);
+        let mut fixed = Switcher::new(Acting::Rough, |_| 1, 2);
         assert_eq!(fixed.update(&[0, 0]), [Rough, Rough]);
     }
 
@@ -169,7 +162,7 @@ mod tests {
     #[test]
     fn kind_codes_switch_to_their_specialists() {
         use PolicySlot::{Flat, Gravel, Rough, Slope};
-        let mut s = Switcher::new(Acting::Switch, 1, 4);
+        let mut s = Switcher::new(Acting::Switch, |_| 1, 4);
         assert_eq!(s.update(&[0, 1, 3, 4]), [Flat, Rough, Slope, Gravel]);
         // Code 2 (the mixed course) names no terrain: nothing changes.
         assert_eq!(s.update(&[2, 2, 2, 2]), [Flat, Rough, Slope, Gravel]);
@@ -179,8 +172,12 @@ mod tests {
     #[test]
     fn a_leave_dwell_holds_its_slot_longer() {
         use PolicySlot::{Flat, General, Sand};
-        let leave = BTreeMap::from([(Sand, 4)]);
-        let mut s = Switcher::new(Acting::Switch, 2, 1).with_leave_dwell(&leave);
+        let cfg = common::config::SimConfig {
+            switch_dwell: 2,
+            leave_dwell: BTreeMap::from([(Sand, 4)]),
+            ..Default::default()
+        };
+        let mut s = Switcher::new(Acting::Switch, |s| cfg.dwell_leaving(s), 1);
         let (flat, sand) = (AreaKind::Flat.code(), AreaKind::Sand.code());
         let mut seen = Vec::new();
         for class in [

@@ -25,6 +25,6 @@ pub use host::Host;
 pub use numbers::thousands;
 pub use role::Role;
 pub use run::{Finished, LAUNCHER_NODE, ResumedConfig, Run};
-pub use summary::{MeanStd, Progress, Summary};
+pub use summary::{MeanStd, Progress, Summary, coverage_line};
 pub use supervisor::{Event, Spec, Supervised};
 pub use sweep::{report_sweep, sweep_dead_runs};

@@ -6,10 +6,14 @@
 use super::board::Board;
 use super::console::{self, Rate, Summaries};
 use super::swap::{SwapContext, learner_args, swap_learner};
-use super::{Binaries, Event, Host, Lines, Progress, Role, Spec, Summary, Supervised, ladder, say};
+use super::{
+    Binaries, Event, Host, Lines, Progress, Role, Spec, Summary, Supervised, coverage_line, ladder,
+    say,
+};
 use crate::error::UserError;
 use anyhow::Context;
-use common::config::{AreaKind, PolicySlot, RestartPolicy};
+use common::config::{Acting, AreaKind, PolicySlot, RestartPolicy};
+use common::coverage::Coverage;
 use common::ipc::{self, Bus, Receiver, SwapServer};
 use common::wire::{EnvTick, PolicyHeader, SwapReply, TerrainEstimate, TerrainHeader, TickHeader};
 use common::{Config, run_dir};
@@ -364,6 +368,19 @@ impl<'a> Run<'a> {
                 .exit
                 .insert(name.clone(), m.child.status().map(|s| s.to_string()));
             summary.restarts.insert(name, m.restarts);
+        }
+        let telemetry = self.dir.join(run_dir::TELEMETRY_CSV);
+        if self.cfg.sim.acting == Acting::Switch
+            && self.host.starts(Role::Sim)
+            && telemetry.is_file()
+        {
+            match Coverage::of_files(&[telemetry], &self.cfg.sim) {
+                Ok(c) => {
+                    println!("{}", coverage_line(&c));
+                    summary.switching = Some(c);
+                }
+                Err(e) => eprintln!("lavatube: no switching coverage: {e}"),
+            }
         }
         let path = self.dir.join(run_dir::SUMMARY_JSON);
         std::fs::write(&path, serde_json::to_string_pretty(&summary)?)

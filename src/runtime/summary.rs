@@ -93,6 +93,10 @@ pub struct Summary {
     /// Per learner, checkpoint and metrics writes that failed (a full disk); training went
     /// on and the previous checkpoint stayed whole.
     pub write_failures: BTreeMap<String, u32>,
+    /// A switching run's coverage (docs/EXPERIMENT.md E19), from its telemetry CSV; `null`
+    /// unless it switched and wrote one.
+    #[serde(default)]
+    pub switching: Option<common::coverage::Coverage>,
 }
 
 impl Summary {
@@ -130,6 +134,7 @@ impl Summary {
                 .iter()
                 .map(|(slot, w)| (slot.learner_name().to_string(), w.total()))
                 .collect(),
+            switching: None,
         }
     }
 
@@ -149,6 +154,34 @@ impl Summary {
             dir.display()
         )
     }
+}
+
+/// The line a switching run prints about its coverage (docs/EXPERIMENT.md E19).
+pub fn coverage_line(c: &common::coverage::Coverage) -> String {
+    let crossings: Vec<String> = c
+        .crossings
+        .iter()
+        .map(|(k, x)| {
+            format!(
+                "{} {}/{} after {:.1} ticks",
+                k.name(),
+                x.detected,
+                x.crossings,
+                x.mean_delay_ticks
+            )
+        })
+        .collect();
+    format!(
+        "switching: an estimate on {:.1}% of ticks, acted on in {:.1}%, {:.1} switches per 100 m; crossings detected: {}",
+        100.0 * c.with_estimate,
+        100.0 * c.acting_on_estimate,
+        c.switches_per_100m,
+        if crossings.is_empty() {
+            "none".into()
+        } else {
+            crossings.join(", ")
+        }
+    )
 }
 
 #[cfg(test)]

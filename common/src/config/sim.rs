@@ -87,6 +87,16 @@ settings! {
 }
 
 impl SimConfig {
+    /// Switching: the ticks a new estimate must hold before an env leaves `slot` (its
+    /// `leave-dwell`, else `switch-dwell`; at least 1).
+    pub fn dwell_leaving(&self, slot: PolicySlot) -> u32 {
+        self.leave_dwell
+            .get(&slot)
+            .copied()
+            .unwrap_or(self.switch_dwell)
+            .max(1) as u32
+    }
+
     /// Whether each env carries the simulated IMU and its filter.
     pub fn simulates_imu(&self) -> bool {
         self.observation == AttitudeSource::Imu || self.imu.simulate

@@ -68,7 +68,10 @@ fn coverage_counts_a_hand_counted_course() {
     assert_eq!((rough.crossings, rough.detected), (1, 1));
     assert!((rough.mean_delay_ticks - 4.0).abs() < 1e-12);
     let flat = c.crossings[&Flat];
-    assert_eq!((flat.crossings, flat.detected, flat.mean_delay_ticks), (1, 0, 0.0));
+    assert_eq!(
+        (flat.crossings, flat.detected, flat.mean_delay_ticks),
+        (1, 0, 0.0)
+    );
 }
 
 #[test]

@@ -157,6 +157,7 @@ mod tests {
             model: model.into(),
             area,
             legs,
+            coverage: None,
         };
         let base = legs(100, &|i| (i % 10 != 0).then_some(30 + (i % 7) as u32));
         let mut cells = Vec::new();
@@ -234,6 +235,7 @@ mod tests {
                     model: model.into(),
                     area,
                     legs: legs.clone(),
+                    coverage: None,
                 });
             }
         }
@@ -267,6 +269,7 @@ mod tests {
             model: model.into(),
             area: AreaKind::Mixed,
             legs,
+            coverage: None,
         };
         let general = eval("general", legs(&|i| Some(40 + (i % 5) as u32)));
         // Six legs of 200 lost (-3.0 pp, sd 17.1, ± 2.4) but 0.3 s sooner on the rest.

@@ -3,10 +3,11 @@
 
 use super::legs::{Cell, Evaluated, Legs, legs_in};
 use super::stages::Pipeline;
-use crate::runtime;
+use crate::runtime::{self, coverage_line};
 use anyhow::Context;
 use common::Config;
 use common::config::{Acting, AreaKind, EpisodeStart, PolicySlot};
+use common::coverage::Coverage;
 use common::run_dir::TELEMETRY_CSV;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -113,6 +114,7 @@ impl Pipeline {
             model: model.into(),
             area,
             legs,
+            coverage: None,
         })
     }
 
@@ -143,7 +145,8 @@ impl Pipeline {
     ) -> anyhow::Result<Evaluated> {
         let courses = self.test_courses();
         let steps = courses.ticks * self.base.reproduce.eval_envs as u64;
-        self.evaluate("switching", area, courses, |base, name| {
+        let mut recordings = Vec::new();
+        let mut evaluated = self.evaluate("switching", area, courses, |base, name| {
             let mut cfg = base.clone();
             cfg.run.learners.clear();
             cfg.run.frozen = frozen.clone();
@@ -159,8 +162,19 @@ impl Pipeline {
             self.estimate_with_stage_d(&mut cfg);
             cfg.validate()?;
             self.execute(&cfg, name)?;
-            Ok(eval.join(name).join(TELEMETRY_CSV))
-        })
+            let csv = eval.join(name).join(TELEMETRY_CSV);
+            recordings.push(csv.clone());
+            Ok(csv)
+        })?;
+        let coverage = Coverage::of_files(&recordings, &self.base.sim)?;
+        self.say(&format!(
+            "{}: switching on {} ground: {}",
+            courses.stage,
+            area.name(),
+            coverage_line(&coverage)
+        ));
+        evaluated.coverage = Some(coverage);
+        Ok(evaluated)
     }
 
     /// Stage f's config in `area`: `reproduce.eval-envs` envs, all there, on the

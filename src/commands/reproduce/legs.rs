@@ -60,6 +60,10 @@ pub(super) struct Evaluated {
     pub(super) model: String,
     pub(super) area: AreaKind,
     pub(super) legs: Legs,
+    /// How much of a switching model's driving acted on live estimates; `None` for a model
+    /// that drove alone.
+    #[serde(default)]
+    pub(super) coverage: Option<common::coverage::Coverage>,
 }
 
 /// The legs each env ended in a telemetry CSV (`sim-proc --telemetry`), in order: a leg's

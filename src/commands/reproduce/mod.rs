@@ -28,6 +28,7 @@
 //! [`checks`] compare the models, [`report`] writes the Markdown.
 
 mod checks;
+mod coverage;
 mod evaluation;
 mod legs;
 mod pipeline;

@@ -2,6 +2,7 @@
 //! seeds with every number as mean ± 95 % CI.
 
 use super::checks::{Check, SHAPE_CHECKS_HEADING, checks, shape_checks};
+use super::coverage;
 use super::evaluation::eval_areas;
 use super::legs::{Cell, Evaluated};
 use super::selection::{GENERAL, Selection, chosen_before, roles};
@@ -155,6 +156,7 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
         );
     }
     md += &seeds_shape_checks(runs, beside);
+    md += &coverage::seeds_section(runs);
     md += &seeds_selection(runs)?;
     md += &seeds_table_3(runs, beside)?;
     Ok(md)
@@ -325,6 +327,7 @@ pub(super) fn report(
         }
     }
     md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
+    md += &coverage::section(cells, p.base.sim.decision_dt());
     md += &selection_table(selections, r.validation_episodes);
     md += &analysis(p)?;
     md += &learning_curves(p);
@@ -347,7 +350,10 @@ fn table_1(p: &Pipeline, cells: &[Evaluated]) -> String {
         r.eval_roughness_scale.unwrap_or(trained)
     );
     md += "| model | area | ours: success % (episodes) | ours: reach s, mean (std) | paper: success % | paper: reach s |\n|---|---|---:|---:|---:|---:|\n";
-    for Evaluated { model, area, legs } in cells {
+    for Evaluated {
+        model, area, legs, ..
+    } in cells
+    {
         let cell = Cell::of(legs, p.base.sim.decision_dt());
         let (ps, pr) = paper_cell(model, *area).map_or(("-".into(), "-".into()), |(s, m, sd)| {
             (format!("{s:.1}"), format!("{m:.2} ({sd:.2})"))
@@ -464,6 +470,7 @@ mod tests {
                         model: model.into(),
                         area,
                         legs: legs(ticks),
+                        coverage: None,
                     });
                 }
             }
