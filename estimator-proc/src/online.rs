@@ -218,6 +218,18 @@ impl OnlineEstimator {
         Ok(())
     }
 
+    /// Keeps env `env`'s window and belief across a placement (`estimator.on-placement =
+    /// "carry"`): its next position adds no path.
+    pub fn jump_env(&mut self, env: usize) -> Result<()> {
+        let envs = self.envs.len();
+        self.envs
+            .get_mut(env)
+            .ok_or(EstimatorError::EnvOutOfRange { env, envs })?
+            .travel
+            .jump();
+        Ok(())
+    }
+
     /// Feeds env `env`'s sin θx for this tick and returns its estimate. A non-finite value is
     /// refused (and not fed), so one bad sample cannot poison the window.
     pub fn observe(&mut self, env: usize, sin_pitch: f64) -> Result<Estimate> {

@@ -46,10 +46,14 @@ pub struct KindTick {
 
 #[derive(Debug, Clone)]
 struct EnvWindow {
-    /// The last `window` ticks.
+    /// The last `window` ticks, their positions shifted by `offset`.
     ticks: VecDeque<KindTick>,
     travel: RollingPath,
     held: KindEstimate,
+    /// Added to every position read, so a window carried across placements is one path.
+    offset: [f64; 2],
+    /// The next tick follows a placement ([`KindsEstimator::jump_env`]).
+    jumped: bool,
 }
 
 /// Per-env K-kind classifier over a stored, named mixture.
@@ -119,6 +123,8 @@ impl KindsEstimator {
             ticks: VecDeque::with_capacity(w),
             travel: RollingPath::new(w)?,
             held: KindEstimate::default(),
+            offset: [0.0; 2],
+            jumped: false,
         };
         Ok(Self {
             min_travel: min_step_travel * (w - 1) as f64,
@@ -159,6 +165,15 @@ impl KindsEstimator {
         state.ticks.clear();
         state.travel.clear();
         state.held = KindEstimate::default();
+        state.offset = [0.0; 2];
+        state.jumped = false;
+        Ok(())
+    }
+
+    /// Keeps env `env`'s window and estimate across a placement (`estimator.on-placement =
+    /// "carry"`): its next tick is read as if the robot stood where the last one left it.
+    pub fn jump_env(&mut self, env: usize) -> Result<()> {
+        self.env_mut(env)?.jumped = true;
         Ok(())
     }
 
@@ -178,6 +193,15 @@ impl KindsEstimator {
         let w = self.stored.window;
         let (min_travel, slip, wheels) = (self.min_travel, self.slip, self.wheels);
         let state = self.env_mut(env)?;
+        if std::mem::take(&mut state.jumped)
+            && let Some(last) = state.ticks.back()
+        {
+            state.offset = [last.at[0] - tick.at[0], last.at[1] - tick.at[1]];
+        }
+        let tick = KindTick {
+            at: [tick.at[0] + state.offset[0], tick.at[1] + state.offset[1]],
+            ..tick
+        };
         if state.ticks.len() == w {
             state.ticks.pop_front();
         }
@@ -309,6 +333,29 @@ mod tests {
         assert_eq!(e.envs[0].held.kind, Some(AreaKind::Slope));
         e.reset_env(0).expect("reset");
         assert_eq!(e.envs[0].held.kind, None);
+    }
+
+    /// Carried across a placement, a window reads the ticks after it as if the robot drove
+    /// on from where it stood: every estimate is the one without the jump.
+    #[test]
+    fn a_carried_window_reads_on_across_a_placement() {
+        let mut e = estimator(0.1);
+        for t in 0..12 {
+            let p = 0.2 * f64::from(t % 2);
+            let x = 0.5 * f64::from(t);
+            if t == 6 {
+                e.jump_env(1).expect("jump");
+            }
+            let placed = if t >= 6 { x - 40.0 } else { x };
+            let a = e.observe(0, tick(p, x)).expect("observe");
+            let b = e.observe(1, tick(p, placed)).expect("observe");
+            assert_eq!(a, b, "tick {t}");
+        }
+        assert_eq!(e.envs[1].held.kind, Some(AreaKind::Gravel));
+        assert_eq!(e.stationary(), 0);
+        // Reset forgets the offset with the window.
+        e.reset_env(1).expect("reset");
+        assert_eq!(e.envs[1].offset, [0.0; 2]);
     }
 
     #[test]

@@ -129,6 +129,8 @@ pub struct RollingPath {
     len: usize,
     sum: f64,
     last: Option<[f64; 2]>,
+    /// The next position follows a jump ([`RollingPath::jump`]).
+    jumped: bool,
 }
 
 impl RollingPath {
@@ -143,13 +145,18 @@ impl RollingPath {
             len: 0,
             sum: 0.0,
             last: None,
+            jumped: false,
         })
     }
 
     /// Adds a position (X-Z, metres) and returns the path length over the window once full.
     pub fn push(&mut self, p: [f64; 2]) -> Option<f64> {
         if let Some(q) = self.last.replace(p) {
-            let step = (p[0] - q[0]).hypot(p[1] - q[1]);
+            let step = if std::mem::take(&mut self.jumped) {
+                0.0
+            } else {
+                (p[0] - q[0]).hypot(p[1] - q[1])
+            };
             let n = self.steps.len();
             if self.len == n {
                 self.sum -= self.steps[self.head];
@@ -173,6 +180,13 @@ impl RollingPath {
         self.len = 0;
         self.sum = 0.0;
         self.last = None;
+        self.jumped = false;
+    }
+
+    /// The robot was put somewhere else: the next position adds a step of no length, so the
+    /// window's path is the path driven.
+    pub fn jump(&mut self) {
+        self.jumped = true;
     }
 }
 
@@ -209,6 +223,13 @@ mod tests {
             "cleared: no step from the old position"
         );
         assert!(RollingPath::new(1).is_err());
+        // A jump adds a step of no length: 1 m, the jump, 1 m over window 4.
+        let mut r = RollingPath::new(4).expect("window");
+        r.push([0.0, 0.0]);
+        r.push([1.0, 0.0]);
+        r.jump();
+        r.push([5.0, 0.0]);
+        assert_eq!(r.push([6.0, 0.0]), Some(2.0));
         // Many laps: the running sum stays exact.
         let walk: Vec<[f64; 2]> = (0..10_000).map(|i| [0.1 * f64::from(i), 0.0]).collect();
         let last = *rolling_path(&walk, 70)

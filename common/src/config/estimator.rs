@@ -52,11 +52,14 @@ settings! {
         /// estimate. 0 counts every window, as the paper did; 0.02 (interpretation) is a
         /// quarter of the robot's usual 0.08 m/s, so a window counts once most of it is driven.
         pub min_speed: f64 = 0.02 => real(0.0, 10.0), "m/s", Research;
-        /// Online: a robot placed somewhere new (a respawn, or an evaluation course's next
-        /// leg) starts a new window, and this many ticks, the placement's own first, are left
-        /// out while the dropped robot settles; meanwhile the env has no estimate and
-        /// switching keeps its slot (a drop shakes sin θx for about three ticks).
+        /// Online: after a robot is placed somewhere new (a respawn, or an evaluation course's
+        /// next leg) this many ticks, the placement's own first, are left out while the
+        /// dropped robot settles (a drop shakes sin θx for about three ticks).
         pub settle_ticks: usize = 3 => count(0, 1000), "ticks", Advanced;
+        /// Online: what a placement does to the env's window: `carry` keeps it and its
+        /// estimate (the jump adds no path), `new-window` starts a new one, without an
+        /// estimate until it fills (docs/EXPERIMENT.md E17).
+        pub on_placement: OnPlacement = OnPlacement::Carry => choices::<OnPlacement>(), "", Research;
         /// Online: a mixture fitted offline to classify with from the first full window (SPEC
         /// S7): a `results.json` of `estimator-proc analyze`, whose fit for `online-window` is
         /// taken; refits warm-start from it. Without one the first online fit defines the
@@ -79,6 +82,9 @@ settings! {
         /// component then named after a kind by them, or `labelled`, one component per kind
         /// fitted to that kind's windows alone (interpretation).
         pub kinds_fit: KindsFit = KindsFit::Em => choices::<KindsFit>(), "", Research;
+        /// `estimator-proc kinds` with `kinds-fit = "em"`: mixture components per kind, for
+        /// kinds whose windows are not one Gaussian (a robot that drives, and one dug in).
+        pub components_per_kind: usize = 1 => count(1, 8), "components", Research;
         /// A window farther than this many standard deviations (Mahalanobis) from every
         /// component is "unknown" rather than any kind; 0 classifies every window.
         pub unknown_beyond: f64 = 0.0 => real(0.0, 100.0), "σ", Research;
@@ -152,6 +158,20 @@ pub enum KindsFit {
 }
 
 impl Setting for KindsFit {}
+
+/// What a placement does to an env's online window (`estimator.on-placement`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum OnPlacement {
+    /// Keep the window and the estimate; the settling ticks are left out and the placement's
+    /// jump adds no path, so a robot's windows run on as one drive.
+    #[default]
+    Carry,
+    /// Start a new window: no estimate until it fills.
+    NewWindow,
+}
+
+impl Setting for OnPlacement {}
 
 /// The value of a window the terrain mixture sees (SPEC S7: the window's std of sin θx).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]

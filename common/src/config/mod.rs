@@ -27,7 +27,7 @@ mod terrain;
 mod tests;
 
 pub use estimator::{
-    Covariance, EstimatorConfig, KindsFit, MixtureFeature, WINDOW_TICKS, WindowFeature,
+    Covariance, EstimatorConfig, KindsFit, MixtureFeature, OnPlacement, WINDOW_TICKS, WindowFeature,
 };
 pub use external::ExternalConfig;
 pub use imu::{Accel, AttitudeSource, FilterConfig, Gyro, ImuConfig, SensorErrors};

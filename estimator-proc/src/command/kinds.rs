@@ -26,7 +26,8 @@ use std::path::{Path, PathBuf};
 pub struct KindsArgs {
     #[command(flatten)]
     pub input: InputArgs,
-    /// Mixture components, 1 ..= 16 [default: one per terrain kind in the recording].
+    /// Mixture components, 1 ..= 16 [default: `estimator.components-per-kind` per terrain kind
+    /// in the recording, at most 16].
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=16))]
     pub components: Option<u64>,
     /// Score the recording with the named classifiers of this `kinds.json` (written by an
@@ -81,7 +82,14 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
         .into_iter()
         .filter(|k| series.iter().any(|s| s.area == *k))
         .collect();
-    let components = args.components.map_or(kinds.len(), |k| k as usize);
+    let per_kind = match cfg.kinds_fit {
+        KindsFit::Em => cfg.components_per_kind,
+        KindsFit::Labelled => 1,
+    };
+    let components = args
+        .components
+        .map_or(kinds.len() * per_kind, |k| k as usize)
+        .min(16);
     let opts = MixtureOptions::from_config(&cfg, components, seed);
     let names: Vec<&'static str> = cfg.features.iter().map(|f| f.name()).collect();
     tracing::info!(rows = rows.len(), series = series.len(), kinds = kinds.len(), features = ?names, "telemetry read");

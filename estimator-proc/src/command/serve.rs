@@ -6,7 +6,7 @@
 use crate::OnlineEstimator;
 use crate::online_kinds::{KindTick, KindsEstimator};
 use common::AreaKind;
-use common::config::AttitudeSource;
+use common::config::{AttitudeSource, OnPlacement};
 use common::ipc::{self, Bus};
 use common::wire::{self, EnvTick, TerrainEstimate, TerrainHeader, TickHeader};
 use std::time::Duration;
@@ -23,6 +23,13 @@ impl Classifying {
         match self {
             Classifying::Classes(e) => e.reset_env(env),
             Classifying::Kinds(e) => e.reset_env(env),
+        }
+    }
+
+    fn jump_env(&mut self, env: usize) -> crate::Result<()> {
+        match self {
+            Classifying::Classes(e) => e.jump_env(env),
+            Classifying::Kinds(e) => e.jump_env(env),
         }
     }
 
@@ -107,6 +114,7 @@ pub fn execute(args: &common::cli::JoinArgs) -> anyhow::Result<()> {
         signal: cfg.estimator.signal,
         out: vec![TerrainEstimate::default(); n],
         settling: Settling::new(cfg.estimator.settle_ticks, n),
+        on_placement: cfg.estimator.on_placement,
         scored: 0,
         correct: 0,
         ticks: 0,
@@ -140,6 +148,7 @@ struct Serving {
     /// Every env's newest estimate, as published.
     out: Vec<TerrainEstimate>,
     settling: Settling,
+    on_placement: OnPlacement,
     scored: u64,
     correct: u64,
     ticks: u64,
@@ -154,14 +163,7 @@ impl Serving {
             let env = t.env as usize;
             let (starts, read) = self.settling.tick(env, t.events);
             if starts {
-                // A robot placed somewhere new starts a new series: its old window says
-                // nothing about the ground it is on now.
-                self.est.reset_env(env)?;
-                self.out[env] = TerrainEstimate {
-                    env: t.env,
-                    class: wire::CLASS_UNKNOWN,
-                    ..TerrainEstimate::default()
-                };
+                self.place(env)?;
             }
             if !read {
                 continue;
@@ -181,6 +183,23 @@ impl Serving {
             self.out[env] = e;
         }
         Ok(())
+    }
+
+    /// Env `env`'s robot was placed somewhere new: its window runs on across the jump, or
+    /// (`new-window`) a new one starts, with no estimate until it fills.
+    fn place(&mut self, env: usize) -> crate::Result<()> {
+        match self.on_placement {
+            OnPlacement::Carry => self.est.jump_env(env),
+            OnPlacement::NewWindow => {
+                self.est.reset_env(env)?;
+                self.out[env] = TerrainEstimate {
+                    env: env as u32,
+                    class: wire::CLASS_UNKNOWN,
+                    ..TerrainEstimate::default()
+                };
+                Ok(())
+            }
+        }
     }
 
     /// The header of the estimates after telemetry tick `tick`.
@@ -207,8 +226,8 @@ impl Serving {
     }
 }
 
-/// Which ticks start a new series and which are read: a robot put somewhere new (a respawn, a
-/// fault's respawn, or an evaluation course's next leg) starts one, and its first `ticks`
+/// Which ticks follow a placement and which are read: a robot put somewhere new (a respawn, a
+/// fault's respawn, or an evaluation course's next leg) is placed, and its first `ticks`
 /// ticks, the placement's own included, are left out while it settles
 /// (`estimator.settle-ticks`).
 struct Settling {
@@ -281,6 +300,54 @@ mod tests {
         );
         // No settling: the placement's own tick is read, in the new series.
         assert_eq!(s.tick(0, placed), (true, true));
+    }
+
+    /// An env classified, then placed: carried, it keeps its estimate through the settling
+    /// ticks and after; with a new window it has none until the window fills again.
+    #[test]
+    fn a_placement_keeps_the_estimate_or_starts_a_new_window() {
+        use crate::gmm::Gmm;
+        let serving = |on_placement| {
+            let model = Gmm::new(vec![0.5, 0.5], vec![0.02, 0.08], vec![1e-4, 1e-3]).expect("gmm");
+            let cfg = common::config::EstimatorConfig {
+                online_window: 10,
+                refit_every: 0,
+                ..Default::default()
+            };
+            Serving {
+                est: Classifying::Classes(
+                    OnlineEstimator::with_model(&cfg, 1, 1, model).expect("estimator"),
+                ),
+                signal: AttitudeSource::Truth,
+                out: vec![TerrainEstimate::default(); 1],
+                settling: Settling::new(3, 1),
+                on_placement,
+                scored: 0,
+                correct: 0,
+                ticks: 0,
+            }
+        };
+        let classes = |s: &mut Serving| -> Vec<u8> {
+            (0..16)
+                .map(|t| {
+                    let tick = EnvTick {
+                        sin_pitch: if t % 2 == 0 { 0.08 } else { -0.08 },
+                        pos: [0.01 * t as f32, 0.0, 0.0],
+                        events: if t == 12 { wire::EVENT_PLACED } else { 0 },
+                        ..EnvTick::default()
+                    };
+                    s.read(&[tick]).expect("read");
+                    s.out[0].class
+                })
+                .collect()
+        };
+        let unknown = wire::CLASS_UNKNOWN;
+        let carried = classes(&mut serving(OnPlacement::Carry));
+        assert_eq!(carried[..9], [unknown; 9]);
+        assert_eq!(carried[9..], [1; 7], "rough from the first full window on");
+        let renewed = classes(&mut serving(OnPlacement::NewWindow));
+        assert_eq!(renewed[9..12], [1; 3]);
+        assert_eq!(renewed[12..], [unknown; 4], "placed at 12: a new window");
     }
 
     #[test]

@@ -209,6 +209,35 @@ fn starts_from_a_given_model_and_reset_forgets_the_window() {
     assert!(est.reset_env(1).is_err());
 }
 
+/// A window carried across a placement: the pitch window and the estimate run on, and the
+/// jump is no path, so a robot placed 5 m away counts as moving as before.
+#[test]
+fn a_carried_window_runs_on_across_a_jump() {
+    let model = Gmm::new(vec![0.5, 0.5], vec![0.02, 0.08], vec![1e-4, 1e-3]).expect("model");
+    // No refit: one would land between the two envs' observations of a tick.
+    let cfg = EstimatorConfig {
+        refit_every: 0,
+        ..config(0.0)
+    };
+    let est = OnlineEstimator::with_model(&cfg, 2, 1, model).expect("estimator");
+    // Driving 1 cm a tick; the gate wants 0.9 cm a tick over the window.
+    let mut est = est.gate_stationary(0.009);
+    let mut rng = common::Rng::new(3);
+    for t in 0..100 {
+        let p = 0.08 * rng.normal();
+        let x = 0.01 * f64::from(t);
+        let jumped = if t >= 80 { x + 5.0 } else { x };
+        if t == 80 {
+            est.jump_env(1).expect("jump");
+        }
+        let [a, b] = [(0, x), (1, jumped)]
+            .map(|(env, x)| est.observe_at(env, p, Some([x, 0.0])).expect("observe"));
+        assert_eq!(a, b, "tick {t}");
+    }
+    assert_eq!(est.stats().stationary, 0);
+    assert!(est.jump_env(2).is_err());
+}
+
 /// A mixture over log std classifies each window by the log of its std: windows of
 /// std 0.02 and 0.08 fall to components at ln 0.02 and ln 0.08.
 #[test]
