@@ -1,4 +1,4 @@
-//! How much of a switching run acted on live terrain estimates (docs/EXPERIMENT.md E19),
+//! How much of a switching run acted on live terrain estimates (docs/EXPERIMENT.md E20),
 //! counted from its telemetry CSV's `estimate` and `slot` columns:
 //!
 //! - **with an estimate**: of each env's decision ticks from its first estimate on, the share

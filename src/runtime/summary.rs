@@ -93,7 +93,7 @@ pub struct Summary {
     /// Per learner, checkpoint and metrics writes that failed (a full disk); training went
     /// on and the previous checkpoint stayed whole.
     pub write_failures: BTreeMap<String, u32>,
-    /// A switching run's coverage (docs/EXPERIMENT.md E19), from its telemetry CSV; `null`
+    /// A switching run's coverage (docs/EXPERIMENT.md E20), from its telemetry CSV; `null`
     /// unless it switched and wrote one.
     #[serde(default)]
     pub switching: Option<common::coverage::Coverage>,
@@ -156,7 +156,7 @@ impl Summary {
     }
 }
 
-/// The line a switching run prints about its coverage (docs/EXPERIMENT.md E19).
+/// The line a switching run prints about its coverage (docs/EXPERIMENT.md E20).
 pub fn coverage_line(c: &common::coverage::Coverage) -> String {
     let crossings: Vec<String> = c
         .crossings

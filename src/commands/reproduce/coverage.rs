@@ -1,4 +1,4 @@
-//! The reports' section on switching with live estimates (docs/EXPERIMENT.md E19): per
+//! The reports' section on switching with live estimates (docs/EXPERIMENT.md E20): per
 //! evaluation ground, how much of the switching model's driving had an estimate, acted on it,
 //! how often it switched, and how soon it named each kind it crossed into.
 
