@@ -1,9 +1,10 @@
 //! The map of a run (feature `plot`): the floor's height shaded from above, the areas and the
-//! mixed course outlined, each robot's path coloured by the estimator's class, targets,
+//! mixed course outlined, each robot's path coloured by its class's terrain kind (the kind of
+//! the specialist that acted, else the estimator's), targets,
 //! successes and failures marked. World X runs right, world Z up; each height sample is a
 //! square of [`Map::scale`] pixels, so the image has the terrain's proportions.
 
-use crate::config::Rect;
+use crate::config::{AreaKind, Rect};
 use crate::plot::{FONT, register_fonts};
 use crate::terrain::Terrain;
 use crate::track::{Mark, TrackPoint};
@@ -15,10 +16,8 @@ const MAX_SIDE: usize = 1600;
 /// Episodes drawn per robot, its last ones: a whole run's thousands would cover the ground.
 pub const EPISODES_PER_ROBOT: u64 = 6;
 
-/// Path colours by estimator class: flat, rough, none yet.
-const FLAT: RGBColor = RGBColor(40, 110, 230);
-const ROUGH: RGBColor = RGBColor(240, 130, 20);
-const UNKNOWN: RGBColor = RGBColor(150, 150, 150);
+/// A path's colour where it has no class (no estimate yet, or the general model acting).
+const UNKNOWN: RGBColor = RGBColor(20, 20, 20);
 const SUCCESS: RGBColor = RGBColor(20, 170, 60);
 const FAILURE: RGBColor = RGBColor(220, 30, 30);
 
@@ -105,12 +104,15 @@ fn recent(track: &[TrackPoint], episodes: u64) -> Vec<TrackPoint> {
         .collect()
 }
 
+/// A path's colour: its class's terrain kind's, as in every figure.
 fn class_colour(class: u8) -> RGBColor {
-    match class {
-        0 => FLAT,
-        1 => ROUGH,
-        _ => UNKNOWN,
-    }
+    AreaKind::KINDS
+        .into_iter()
+        .find(|k| k.code() == class)
+        .map_or(UNKNOWN, |k| {
+            let [r, g, b] = k.colour();
+            RGBColor(r, g, b)
+        })
 }
 
 /// Draws the map of `terrain` with `areas` outlined and labelled and the `track` on it, to
@@ -188,12 +190,24 @@ fn overlay(
             Mark::Failure => root.draw(&Cross::new(at, 4, FAILURE.stroke_width(2)))?,
         }
     }
-    legend(root, map)
+    legend(root, map, track)
 }
 
-fn legend(root: &Area, map: &Map) -> Result<(), Box<dyn std::error::Error>> {
+/// The legend: a path colour per kind on the track, then the marks.
+fn legend(root: &Area, map: &Map, track: &[TrackPoint]) -> Result<(), Box<dyn std::error::Error>> {
+    let mut rows: Vec<(String, RGBColor)> = AreaKind::KINDS
+        .into_iter()
+        .filter(|k| track.iter().any(|p| p.class == k.code()))
+        .map(|k| (format!("path, {}", k.name()), class_colour(k.code())))
+        .collect();
+    rows.extend([
+        ("path, no class".to_string(), UNKNOWN),
+        ("target".into(), WHITE),
+        ("success".into(), SUCCESS),
+        ("failure".into(), FAILURE),
+    ]);
     let font = (FONT, 14).into_font().color(&WHITE);
-    let (x, mut y) = (10, map.height as i32 - 7 * 18 - 10);
+    let (x, mut y) = (10, map.height as i32 - (rows.len() as i32 + 1) * 18 - 10);
     root.draw(&Rectangle::new(
         [(x - 6, y - 6), (x + 230, map.height as i32 - 6)],
         BLACK.mix(0.55).filled(),
@@ -201,14 +215,6 @@ fn legend(root: &Area, map: &Map) -> Result<(), Box<dyn std::error::Error>> {
     let title = format!("last {EPISODES_PER_ROBOT} episodes of each robot");
     root.draw(&Text::new(title, (x, y), font.clone()))?;
     y += 18;
-    let rows: [(&str, RGBColor); 6] = [
-        ("path, estimated flat", FLAT),
-        ("path, estimated rough", ROUGH),
-        ("path, no estimate yet", UNKNOWN),
-        ("target", WHITE),
-        ("success", SUCCESS),
-        ("failure", FAILURE),
-    ];
     for (text, c) in rows {
         root.draw(&Rectangle::new([(x, y + 3), (x + 14, y + 11)], c.filled()))?;
         root.draw(&Text::new(text, (x + 22, y), font.clone()))?;
@@ -316,7 +322,7 @@ mod tests {
             let k = (v as usize * info.width as usize + u as usize) * 3;
             [buf[k], buf[k + 1], buf[k + 2]]
         };
-        let flat = [FLAT.0, FLAT.1, FLAT.2];
+        let flat = AreaKind::Flat.colour();
         assert_eq!(pixel(map.pixel(-1.5, 0.0)), flat);
         assert_ne!(pixel(map.pixel(-1.5, -0.6)), flat);
     }

@@ -34,7 +34,8 @@ pub struct TrackPoint {
     /// Ground position, metres.
     pub x: f32,
     pub z: f32,
-    /// The estimator's class for this env at that tick (0 flat, 1 rough, 255 none yet).
+    /// What the path is coloured by at that tick, a terrain kind's code (255: none): the
+    /// kind of the specialist that acted, else the estimator's class.
     pub class: u8,
 }
 
@@ -147,7 +148,8 @@ pub fn read(path: &Path) -> Result<Vec<TrackPoint>, String> {
         .collect()
 }
 
-/// The track of a telemetry CSV's rows (classes unknown: telemetry does not carry them).
+/// The track of a telemetry CSV's rows, classed as the sim's own track is (by the `slot` and
+/// `estimate` columns; unknown in recordings without them).
 pub fn from_telemetry(rows: &[TelemetryRow], stride: u64) -> Vec<TrackPoint> {
     let envs = rows.iter().map(|r| r.env as usize + 1).max().unwrap_or(0);
     let mut tracker = Tracker::new(envs, stride);
@@ -161,7 +163,11 @@ pub fn from_telemetry(rows: &[TelemetryRow], stride: u64) -> Vec<TrackPoint> {
                 episode: r.episode,
                 pos: [r.x as f32, r.z as f32],
                 target: [r.target_x as f32, r.target_z as f32],
-                class: CLASS_UNKNOWN,
+                class: r
+                    .slot
+                    .and_then(crate::config::PolicySlot::kind)
+                    .or(r.estimate)
+                    .map_or(CLASS_UNKNOWN, crate::AreaKind::code),
                 ended: ended.then_some(r.success),
             },
             &mut out,
@@ -173,6 +179,7 @@ pub fn from_telemetry(rows: &[TelemetryRow], stride: u64) -> Vec<TrackPoint> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::AreaKind;
 
     fn seen(tick: u64, episode: u64, x: f32, ended: Option<bool>) -> Seen {
         Seen {
@@ -234,5 +241,29 @@ mod tests {
         std::fs::write(&path, "env,episode\n1,x\n").expect("write");
         let err = read(&path).expect_err("bad file");
         assert!(err.contains("track.csv"), "{err}");
+    }
+
+    #[test]
+    fn a_telemetry_track_is_classed_by_the_acting_specialist_else_the_estimate() {
+        use crate::config::PolicySlot;
+        let row = |tick, slot, estimate| TelemetryRow {
+            tick,
+            slot,
+            estimate,
+            ..TelemetryRow::default()
+        };
+        let rows = [
+            row(0, None, None),
+            row(1, Some(PolicySlot::General), Some(AreaKind::Rough)),
+            row(2, Some(PolicySlot::Slope), Some(AreaKind::Rough)),
+            row(3, Some(PolicySlot::General), None),
+        ];
+        let classes: Vec<u8> = from_telemetry(&rows, 1)
+            .iter()
+            .filter(|p| p.mark == Mark::Path)
+            .map(|p| p.class)
+            .collect();
+        let (rough, slope) = (AreaKind::Rough.code(), AreaKind::Slope.code());
+        assert_eq!(classes, [CLASS_UNKNOWN, rough, slope, CLASS_UNKNOWN]);
     }
 }

@@ -31,6 +31,9 @@ pub struct TickOutputs {
     pub classes: Vec<u8>,
     /// Whether the sim's policies act (not a gym client), so the CSV names their slots.
     policies_act: bool,
+    /// Each env's class on the track: the kind its acting specialist is for, else the
+    /// estimator's class.
+    acted: Vec<u8>,
     ticks: Vec<EnvTick>,
     tick: u64,
 }
@@ -48,6 +51,7 @@ impl TickOutputs {
             track: files.track.map(|p| SimTrack::append(p, n)).transpose()?,
             classes: vec![wire::CLASS_UNKNOWN; n],
             policies_act: cfg.sim.acting != Acting::External,
+            acted: vec![wire::CLASS_UNKNOWN; n],
             ticks: vec![EnvTick::default(); n],
             tick: 0,
         })
@@ -77,7 +81,11 @@ impl TickOutputs {
         }
         driver.env_ticks(fleet, &mut self.ticks);
         if let Some(t) = self.track.as_mut() {
-            t.see(&fleet.envs, &self.ticks, &self.classes);
+            // The map shows the kind a specialist acted for, else the estimator's class.
+            for (i, c) in self.acted.iter_mut().enumerate() {
+                *c = driver.slot(i).kind().map_or(self.classes[i], |k| k.code());
+            }
+            t.see(&fleet.envs, &self.ticks, &self.acted);
         }
         let header = TickHeader {
             tick: self.tick,

@@ -416,7 +416,7 @@ fn learning_curves(p: &Pipeline) -> String {
 /// The maps of stage b's training and of switching on each evaluation ground, those drawn.
 fn maps(p: &Pipeline) -> String {
     let mut md = String::from(
-        "\n## Maps\n\nEach robot's last episodes, its path coloured by the estimator's class: the general model's training (stage b), then switching on each evaluation ground's first courses (stage f).\n\n",
+        "\n## Maps\n\nEach robot's last episodes: the general model's training (stage b), its path coloured by the estimator's class, then switching on each evaluation ground's first courses (stage f), coloured by the kind whose specialist acted (black: the general model, before the first estimate). Colours are the kinds' of every figure.\n\n",
     );
     let maps = std::iter::once(p.stage_dir("b-general")).chain(
         eval_areas(&p.kinds()).into_iter().map(|a| {
