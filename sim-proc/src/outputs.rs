@@ -83,7 +83,10 @@ impl TickOutputs {
         if let Some(t) = self.track.as_mut() {
             // The map shows the kind a specialist acted for, else the estimator's class.
             for (i, c) in self.acted.iter_mut().enumerate() {
-                *c = driver.slot(i).kind().map_or(self.classes[i], |k| k.code());
+                *c = driver
+                    .slot(i)
+                    .kind()
+                    .map_or(self.classes[i], common::AreaKind::code);
             }
             t.see(&fleet.envs, &self.ticks, &self.acted);
         }
