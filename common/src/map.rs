@@ -19,7 +19,8 @@ pub const EPISODES_PER_ROBOT: u64 = 6;
 /// A path's colour where it has no class (no estimate yet, or the general model acting).
 const UNKNOWN: RGBColor = RGBColor(20, 20, 20);
 const SUCCESS: RGBColor = RGBColor(20, 170, 60);
-const FAILURE: RGBColor = RGBColor(220, 30, 30);
+/// Magenta: no kind is drawn in it (rough ground is red).
+const FAILURE: RGBColor = RGBColor(230, 0, 230);
 
 /// How a terrain maps onto pixels.
 #[derive(Debug, Clone, Copy, PartialEq)]
