@@ -16,7 +16,8 @@ pub struct MapArgs {
     /// The run of this id under `runs/` (the default `run.out-dir`): as `--run runs/<RUN_ID>`.
     #[arg(long, value_parser = common::cli::parse_run_id, conflicts_with_all = ["telemetry", "config"])]
     pub run_id: Option<String>,
-    /// A telemetry CSV to draw instead (classes are not in telemetry: paths are grey).
+    /// A telemetry CSV to draw instead (its paths classed by its `slot` and `estimate` columns;
+    /// black in a recording without them).
     #[arg(long, requires = "config")]
     pub telemetry: Option<PathBuf>,
     /// The config the telemetry was recorded with (its floor and areas).

@@ -37,7 +37,7 @@ pub enum Command {
     /// Parse and validate a config file, start nothing; or explain a field, or print the
     /// reference of every field.
     CheckConfig(check_config::CheckArgs),
-    /// Draw a run's map again (the world, every robot's path by estimated terrain, targets,
+    /// Draw a run's map again (the world, every robot's path by the terrain it acted for, targets,
     /// successes and failures), from its run directory or a telemetry CSV.
     Map(map::MapArgs),
     /// List runs with shared-memory resources and their processes.
