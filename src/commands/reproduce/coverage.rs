@@ -3,7 +3,7 @@
 //! how often it switched, and how soon it named each kind it crossed into.
 
 use super::legs::Evaluated;
-use super::report::Runs;
+use super::stages::Pipeline;
 use super::statistics::mean_ci;
 use common::config::AreaKind;
 use common::coverage::Coverage;
@@ -68,7 +68,7 @@ fn over_seeds(covs: &[&Coverage], f: impl Fn(&Coverage) -> Option<f64>, digits: 
 }
 
 /// The section over seeds: every number as mean ± 95 % CI, the delay per kind in seconds.
-pub(super) fn seeds_section(runs: &Runs) -> String {
+pub(super) fn seeds_section(runs: &[(Pipeline, Vec<Evaluated>)]) -> String {
     let Some((p, first)) = runs
         .first()
         .filter(|(_, c)| c.iter().any(|e| e.coverage.is_some()))
