@@ -47,6 +47,25 @@ pub struct Crossings {
 }
 
 impl Coverage {
+    /// Each kind crossed into, `kind detected/crossings after D s` at decision step `dt`
+    /// seconds, comma-separated; `None` when the robots crossed no ground.
+    pub fn crossings_text(&self, dt: f64) -> Option<String> {
+        let parts: Vec<String> = self
+            .crossings
+            .iter()
+            .map(|(k, x)| {
+                format!(
+                    "{} {}/{} after {:.2} s",
+                    k.name(),
+                    x.detected,
+                    x.crossings,
+                    x.mean_delay_ticks * dt
+                )
+            })
+            .collect();
+        (!parts.is_empty()).then(|| parts.join(", "))
+    }
+
     /// The coverage of the telemetry CSVs at `paths`, each its own recording, of a run that
     /// switched as `sim` says ([`crate::config::SimConfig::dwell_leaving`]).
     pub fn of_files(
@@ -75,38 +94,22 @@ struct EnvCount {
     waiting: Option<(AreaKind, u64)>,
 }
 
-/// Counts coverage over telemetry rows (any env order), leaving a slot after `dwell(slot)`
-/// ticks of a new estimate as the switch does.
-pub struct Counter<F: Fn(PolicySlot) -> u32> {
-    dwell: F,
-    envs: BTreeMap<u32, EnvCount>,
+/// What the rows so far add up to.
+#[derive(Debug, Default)]
+struct Tally {
     ticks: u64,
     estimated: u64,
     settled: u64,
     agreed: u64,
     switches: u64,
     metres: f64,
+    /// Per kind: its crossings and the sum of the detected ones' delays, ticks.
     crossings: BTreeMap<AreaKind, (Crossings, u64)>,
 }
 
-impl<F: Fn(PolicySlot) -> u32> Counter<F> {
-    pub fn new(dwell: F) -> Self {
-        Self {
-            dwell,
-            envs: BTreeMap::new(),
-            ticks: 0,
-            estimated: 0,
-            settled: 0,
-            agreed: 0,
-            switches: 0,
-            metres: 0.0,
-            crossings: BTreeMap::new(),
-        }
-    }
-
-    /// Takes one row.
-    pub fn see(&mut self, row: &TelemetryRow) {
-        let mut env = self.envs.remove(&row.env).unwrap_or_default();
+impl Tally {
+    /// Takes env `env`'s next row, leaving a slot after `dwell(slot)` ticks.
+    fn see(&mut self, env: &mut EnvCount, row: &TelemetryRow, dwell: &dyn Fn(PolicySlot) -> u32) {
         if let Some(last) = &env.last {
             if last.episode == row.episode {
                 self.metres += (row.x - last.x).hypot(row.z - last.z);
@@ -115,19 +118,21 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
                 self.switches += 1;
             }
             if last.area != row.area {
-                if let Some((kind, _)) = env.waiting.take() {
-                    self.crossings.entry(kind).or_default().0.crossings += 1;
-                }
+                self.miss(env.waiting.take());
                 env.waiting = Some((row.area, 0));
             }
         }
-        self.count_estimate(&mut env, row);
-        self.count_detection(&mut env, row);
+        self.count_estimate(env, row, dwell);
+        self.count_detection(env, row);
         env.last = Some(*row);
-        self.envs.insert(row.env, env);
     }
 
-    fn count_estimate(&mut self, env: &mut EnvCount, row: &TelemetryRow) {
+    fn count_estimate(
+        &mut self,
+        env: &mut EnvCount,
+        row: &TelemetryRow,
+        dwell: &dyn Fn(PolicySlot) -> u32,
+    ) {
         env.held = row.estimate.map(|k| match env.held {
             Some((held, n)) if held == k => (k, n + 1),
             _ => (k, 1),
@@ -141,10 +146,10 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
             return;
         };
         self.estimated += 1;
-        let specialist = PolicySlot::ALL.into_iter().find(|s| s.kind() == Some(kind));
+        let specialist = PolicySlot::for_class(kind.code());
         let leaving = env.last.as_ref().and_then(|l| l.slot).or(row.slot);
         if let (Some(specialist), Some(from)) = (specialist, leaving)
-            && (from == specialist || held >= (self.dwell)(from))
+            && (from == specialist || held >= dwell(from))
         {
             self.settled += 1;
             self.agreed += u64::from(row.slot == Some(specialist));
@@ -166,41 +171,71 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
         }
     }
 
+    /// A crossing the robot left (or the recording ended) before its specialist acted.
+    fn miss(&mut self, waiting: Option<(AreaKind, u64)>) {
+        if let Some((kind, _)) = waiting {
+            self.crossings.entry(kind).or_default().0.crossings += 1;
+        }
+    }
+}
+
+/// Counts coverage over telemetry rows (any env order), leaving a slot after `dwell(slot)`
+/// ticks of a new estimate as the switch does.
+pub struct Counter<F: Fn(PolicySlot) -> u32> {
+    dwell: F,
+    envs: BTreeMap<u32, EnvCount>,
+    tally: Tally,
+}
+
+impl<F: Fn(PolicySlot) -> u32> Counter<F> {
+    pub fn new(dwell: F) -> Self {
+        Self {
+            dwell,
+            envs: BTreeMap::new(),
+            tally: Tally::default(),
+        }
+    }
+
+    /// Takes one row.
+    pub fn see(&mut self, row: &TelemetryRow) {
+        let env = self.envs.entry(row.env).or_default();
+        self.tally.see(env, row, &self.dwell);
+    }
+
     /// Ends a recording: its crossings still waiting count as missed, and the next rows
     /// (another recording's, whose env ids start again) start every env afresh.
     pub fn end_recording(&mut self) {
         for env in std::mem::take(&mut self.envs).into_values() {
-            if let Some((kind, _)) = env.waiting {
-                self.crossings.entry(kind).or_default().0.crossings += 1;
-            }
+            self.tally.miss(env.waiting);
         }
     }
 
     /// The coverage of every row seen; crossings still waiting at the end count as missed.
     pub fn finish(mut self) -> Coverage {
         self.end_recording();
+        let t = self.tally;
         let share = |n: u64, of: u64| if of == 0 { 0.0 } else { n as f64 / of as f64 };
         Coverage {
-            ticks: self.ticks,
-            with_estimate: share(self.estimated, self.ticks),
-            settled: self.settled,
-            acting_on_estimate: share(self.agreed, self.settled),
-            switches: self.switches,
-            metres: self.metres,
-            switches_per_100m: if self.metres > 0.0 {
-                100.0 * self.switches as f64 / self.metres
+            ticks: t.ticks,
+            with_estimate: share(t.estimated, t.ticks),
+            settled: t.settled,
+            acting_on_estimate: share(t.agreed, t.settled),
+            switches: t.switches,
+            metres: t.metres,
+            switches_per_100m: if t.metres > 0.0 {
+                100.0 * t.switches as f64 / t.metres
             } else {
                 0.0
             },
-            crossings: self
+            crossings: t
                 .crossings
                 .into_iter()
                 .map(|(k, (c, delays))| {
-                    let mean = share(delays, c.detected);
+                    let mean_delay_ticks = share(delays, c.detected);
                     (
                         k,
                         Crossings {
-                            mean_delay_ticks: mean,
+                            mean_delay_ticks,
                             ..c
                         },
                     )

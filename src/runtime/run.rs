@@ -376,7 +376,7 @@ impl<'a> Run<'a> {
         {
             match Coverage::of_files(&[telemetry], &self.cfg.sim) {
                 Ok(c) => {
-                    println!("{}", coverage_line(&c));
+                    println!("{}", coverage_line(&c, self.cfg.sim.decision_dt()));
                     summary.switching = Some(c);
                 }
                 Err(e) => eprintln!("lavatube: no switching coverage: {e}"),

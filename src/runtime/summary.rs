@@ -156,31 +156,15 @@ impl Summary {
     }
 }
 
-/// The line a switching run prints about its coverage (docs/EXPERIMENT.md E20).
-pub fn coverage_line(c: &common::coverage::Coverage) -> String {
-    let crossings: Vec<String> = c
-        .crossings
-        .iter()
-        .map(|(k, x)| {
-            format!(
-                "{} {}/{} after {:.1} ticks",
-                k.name(),
-                x.detected,
-                x.crossings,
-                x.mean_delay_ticks
-            )
-        })
-        .collect();
+/// The line a switching run prints about its coverage (docs/EXPERIMENT.md E20), at decision
+/// step `dt` seconds.
+pub fn coverage_line(c: &common::coverage::Coverage, dt: f64) -> String {
     format!(
         "switching: an estimate on {:.1}% of ticks, acted on in {:.1}%, {:.1} switches per 100 m; crossings detected: {}",
         100.0 * c.with_estimate,
         100.0 * c.acting_on_estimate,
         c.switches_per_100m,
-        if crossings.is_empty() {
-            "none".into()
-        } else {
-            crossings.join(", ")
-        }
+        c.crossings_text(dt).unwrap_or_else(|| "none".into())
     )
 }
 

@@ -72,6 +72,10 @@ fn coverage_counts_a_hand_counted_course() {
         (flat.crossings, flat.detected, flat.mean_delay_ticks),
         (1, 0, 0.0)
     );
+    assert_eq!(
+        c.crossings_text(0.1).as_deref(),
+        Some("flat 0/1 after 0.00 s, rough 1/1 after 0.40 s")
+    );
 }
 
 #[test]

@@ -12,28 +12,6 @@ const HEADING: &str = "\n## Switching on live estimates (stage f)\n\n";
 
 const DEFINITIONS: &str = "Counted from each env's first estimate on: the share of decision ticks with an estimate; of the ticks whose estimate had held for the dwell, the share acted by its specialist; changes of the acting slot per 100 m driven; and per kind crossed into, the crossings its specialist acted on before the robot left that ground, with the mean delay from the crossing.\n\n";
 
-/// Each kind's crossings: `kind detected/crossings (mean delay s)`.
-fn crossings(c: &Coverage, dt: f64) -> String {
-    let parts: Vec<String> = c
-        .crossings
-        .iter()
-        .map(|(k, x)| {
-            format!(
-                "{} {}/{} ({:.2} s)",
-                k.name(),
-                x.detected,
-                x.crossings,
-                x.mean_delay_ticks * dt
-            )
-        })
-        .collect();
-    if parts.is_empty() {
-        "-".into()
-    } else {
-        parts.join(", ")
-    }
-}
-
 /// One seed's section: a row per ground the switching model drove.
 pub(super) fn section(cells: &[Evaluated], dt: f64) -> String {
     if cells.iter().all(|e| e.coverage.is_none()) {
@@ -51,7 +29,7 @@ pub(super) fn section(cells: &[Evaluated], dt: f64) -> String {
             100.0 * c.with_estimate,
             100.0 * c.acting_on_estimate,
             c.switches_per_100m,
-            crossings(c, dt)
+            c.crossings_text(dt).unwrap_or_else(|| "-".into())
         );
     }
     md

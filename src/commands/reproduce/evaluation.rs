@@ -171,7 +171,7 @@ impl Pipeline {
             "{}: switching on {} ground: {}",
             courses.stage,
             area.name(),
-            coverage_line(&coverage)
+            coverage_line(&coverage, self.base.sim.decision_dt())
         ));
         evaluated.coverage = Some(coverage);
         Ok(evaluated)
