@@ -24,6 +24,8 @@ pub enum Refusal {
 }
 
 impl Refusal {
+    const ALL: [Refusal; 2] = [Refusal::NoCredentials, Refusal::WrongCredentials];
+
     /// The kind as counted and logged.
     pub fn kind(self) -> &'static str {
         match self {
@@ -87,17 +89,14 @@ impl tracing::field::Visit for Message {
 /// What this process has already moved into its refusals, per kind.
 #[derive(Default)]
 pub struct Door {
-    taken: [u64; 2],
+    taken: [u64; Refusal::ALL.len()],
 }
 
 impl Door {
     /// Adds the refusals counted since the last call to `refused` (which warns the first
     /// time of each kind).
     pub fn take(&mut self, refused: &mut Refusals) {
-        for (i, r) in [Refusal::NoCredentials, Refusal::WrongCredentials]
-            .into_iter()
-            .enumerate()
-        {
+        for (i, r) in Refusal::ALL.into_iter().enumerate() {
             let now = r.counter().load(Ordering::Relaxed);
             refused.refuse_many(r.kind(), now - self.taken[i], "the Zenoh handshake");
             self.taken[i] = now;

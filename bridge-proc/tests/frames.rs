@@ -26,6 +26,22 @@ fn until(limit: Duration, what: &str, mut done: impl FnMut() -> bool) {
     }
 }
 
+/// A publisher of source `source`'s rollout frames, once the bridge subscribes to it.
+fn rollout_publisher(net: &zenoh::Session, source: u32) -> zenoh::pubsub::Publisher<'static> {
+    let publisher = net
+        .declare_publisher(link::rollout_key(source))
+        .congestion_control(CongestionControl::Block)
+        .wait()
+        .expect("publisher");
+    until(Duration::from_secs(30), "the bridge subscribed", || {
+        publisher
+            .matching_status()
+            .wait()
+            .is_ok_and(|m| m.matching())
+    });
+    publisher
+}
+
 #[test]
 fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_through() {
     let dir = tempfile::tempdir().expect("tempdir");
@@ -98,17 +114,7 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         start.is_some()
     });
     let start = start.expect("a start");
-    let publisher = net
-        .declare_publisher(link::rollout_key(1))
-        .congestion_control(CongestionControl::Block)
-        .wait()
-        .expect("publisher");
-    until(Duration::from_secs(30), "the bridge subscribed", || {
-        publisher
-            .matching_status()
-            .wait()
-            .is_ok_and(|m| m.matching())
-    });
+    let publisher = rollout_publisher(&net, 1);
 
     let n = cfg.sim.num_envs();
     let t = cfg.ppo.rollout_steps(n);
@@ -157,17 +163,7 @@ fn frames_from_outside_the_run_are_refused_and_counted_while_genuine_ones_get_th
         closing,
     ];
     // First the genuine frame under another sim host's key expression.
-    let elsewhere = net
-        .declare_publisher(link::rollout_key(2))
-        .congestion_control(CongestionControl::Block)
-        .wait()
-        .expect("publisher");
-    until(Duration::from_secs(30), "the bridge subscribed", || {
-        elsewhere
-            .matching_status()
-            .wait()
-            .is_ok_and(|m| m.matching())
-    });
+    let elsewhere = rollout_publisher(&net, 2);
     elsewhere.put(genuine.clone()).wait().expect("put");
     // A flood from one source is read no further than its share (`net.source-frames-per-s`,
     // 200) per second.
