@@ -161,8 +161,8 @@ impl Serving {
         let n = self.out.len();
         for t in ticks.iter().filter(|t| (t.env as usize) < n) {
             let env = t.env as usize;
-            let (starts, read) = self.settling.tick(env, t.events);
-            if starts {
+            let (placed, read) = self.settling.tick(env, t.events);
+            if placed {
                 self.place(env)?;
             }
             if !read {
@@ -244,16 +244,16 @@ impl Settling {
         }
     }
 
-    /// For env `env`'s tick with `events`: whether it starts a new series, and whether the
-    /// estimator reads it.
+    /// For env `env`'s tick with `events`: whether the robot was placed somewhere new, and
+    /// whether the estimator reads the tick.
     fn tick(&mut self, env: usize, events: u8) -> (bool, bool) {
-        let starts = events & (wire::EVENT_PLACED | wire::EVENT_FAULT) != 0;
-        if starts {
+        let placed = events & (wire::EVENT_PLACED | wire::EVENT_FAULT) != 0;
+        if placed {
             self.left[env] = self.ticks;
         }
         let read = self.left[env] == 0;
         self.left[env] = self.left[env].saturating_sub(1);
-        (starts, read)
+        (placed, read)
     }
 }
 
@@ -272,7 +272,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn a_placement_or_a_fault_starts_a_new_series_and_its_settling_ticks_are_not_read() {
+    fn a_placement_or_a_fault_is_seen_and_its_settling_ticks_are_not_read() {
         let mut s = Settling::new(2, 2);
         let placed = wire::EVENT_TRUNCATED | wire::EVENT_PLACED;
         let seen: Vec<_> = [0, placed, 0, 0, 0].iter().map(|&e| s.tick(0, e)).collect();
@@ -286,7 +286,7 @@ mod tests {
                 (false, true)
             ]
         );
-        // A fault's respawn starts one too; the other env never noticed.
+        // A fault's respawn is a placement too; the other env never noticed.
         assert_eq!(
             s.tick(0, wire::EVENT_TERMINATED | wire::EVENT_FAULT),
             (true, false)
@@ -298,7 +298,7 @@ mod tests {
             s.tick(0, wire::EVENT_TERMINATED | wire::EVENT_SUCCESS),
             (false, true)
         );
-        // No settling: the placement's own tick is read, in the new series.
+        // No settling: the placement's own tick is read.
         assert_eq!(s.tick(0, placed), (true, true));
     }
 
