@@ -215,6 +215,33 @@ fn a_broken_model_file_is_named_in_one_line() {
 }
 
 #[test]
+fn more_components_than_the_mixture_takes_are_refused_in_one_line() {
+    let tmp = tempfile::tempdir().expect("tempdir");
+    let three = [AreaKind::Flat, AreaKind::Rough, AreaKind::Slope];
+    let traces = write_kinds(tmp.path(), &three, 42);
+    let config = tmp.path().join("c.toml");
+    std::fs::write(&config, "[estimator]\ncomponents-per-kind = 6\n").expect("write");
+    let out = tmp.path().join("o");
+    let argv = [
+        "estimator-proc",
+        "kinds",
+        traces.to_str().expect("utf8"),
+        "--config",
+        config.to_str().expect("utf8"),
+        "--out",
+        out.to_str().expect("utf8"),
+    ];
+    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
+    let e = estimator_proc::run(cli).expect_err("18 components");
+    let msg = format!("{e:#}");
+    assert!(
+        msg.contains("components-per-kind = 6 with 3 kinds asks for 18") && !msg.contains('\n'),
+        "{msg}"
+    );
+    assert!(!out.exists(), "nothing written");
+}
+
+#[test]
 fn the_binary_exits_1_with_one_line_on_bad_input() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let bad = tmp.path().join("bad.csv");

@@ -27,7 +27,7 @@ pub struct KindsArgs {
     #[command(flatten)]
     pub input: InputArgs,
     /// Mixture components, 1 ..= 16 [default: `estimator.components-per-kind` per terrain kind
-    /// in the recording, at most 16].
+    /// in the recording].
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..=16))]
     pub components: Option<u64>,
     /// Score the recording with the named classifiers of this `kinds.json` (written by an
@@ -88,8 +88,12 @@ pub fn execute(args: &KindsArgs) -> anyhow::Result<()> {
     };
     let components = args
         .components
-        .map_or(kinds.len() * per_kind, |k| k as usize)
-        .min(16);
+        .map_or(kinds.len() * per_kind, |k| k as usize);
+    anyhow::ensure!(
+        components <= 16,
+        "estimator.components-per-kind = {per_kind} with {} kinds asks for {components} mixture components; at most 16",
+        kinds.len()
+    );
     let opts = MixtureOptions::from_config(&cfg, components, seed);
     let names: Vec<&'static str> = cfg.features.iter().map(|f| f.name()).collect();
     tracing::info!(rows = rows.len(), series = series.len(), kinds = kinds.len(), features = ?names, "telemetry read");
