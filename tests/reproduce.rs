@@ -156,13 +156,50 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         report.contains("## Specialists chosen on validation courses (stage e)"),
         "{report}"
     );
+    // The switch's reading: its own (window 20, dwell 10) and the 5-tick dwell at windows 20
+    // and 40, each on the mixed validation courses; stage f switches with the one chosen.
+    let tuning: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("e-switch/tuning.json")).expect("tuning.json"),
+    )
+    .expect("tuning json");
+    let tried: Vec<(u64, u64)> = tuning["tried"]
+        .as_array()
+        .expect("tried")
+        .iter()
+        .map(|t| {
+            let r = &t["reading"];
+            (
+                r["window"].as_u64().expect("w"),
+                r["dwell"].as_u64().expect("d"),
+            )
+        })
+        .collect();
+    assert_eq!(tried, [(20, 10), (20, 5), (40, 5)], "{tuning}");
+    let (window, dwell) = tried[tuning["chosen"].as_u64().expect("chosen") as usize];
+    let tried_cfg =
+        std::fs::read_to_string(out.join("e-switch/switching-w40-d5-mixed-0/config.toml"))
+            .expect("a tried reading's config");
+    assert!(tried_cfg.contains("seed = 1048579"), "{tried_cfg}");
+    assert!(tried_cfg.contains("online-window = 40\n"), "{tried_cfg}");
+    assert!(
+        switch.contains(&format!("online-window = {window}\n")),
+        "{switch}"
+    );
+    assert!(
+        switch.contains(&format!("switch-dwell = {dwell}\n")),
+        "{switch}"
+    );
+    assert!(
+        report.contains("## Online window and dwell chosen on validation courses (stage e)"),
+        "{report}"
+    );
     assert_eq!(
         report
             .lines()
             .filter(|l| l.ends_with("| **yes** |"))
             .count(),
-        2,
-        "{report}"
+        3,
+        "two specialists and one reading:\n{report}"
     );
     // Paired evaluation: the runtime's sim (switching) and `sim-proc` alone (one model) drive
     // the same course, leg by leg.
@@ -188,6 +225,9 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
     assert!(n >= 1, "{alone:?} {switching:?}");
     assert_eq!(alone[..n], switching[..n]);
     let table3 = report
+        .split("## Table 3")
+        .nth(1)
+        .unwrap_or_default()
         .lines()
         .filter(|l| {
             ["| 10 |", "| 20 |", "| 40 |", "| 70 |"]

@@ -3,6 +3,8 @@
 //!
 //! - **with an estimate**: of each env's decision ticks from its first estimate on, the share
 //!   on which the sim held one;
+//! - **estimates right**: of those with an estimate, the share naming the ground under the
+//!   robot (a window straddling a boundary still reads the ground it left);
 //! - **acting on it**: of the ticks whose estimate had held for the dwell the switch needs to
 //!   leave the slot it was in (SPEC S8), the share acted by that estimate's specialist;
 //! - **switches per 100 m**: changes of the acting slot per 100 m driven (placements' jumps
@@ -23,6 +25,9 @@ pub struct Coverage {
     pub ticks: u64,
     /// Of `ticks`, the share with an estimate.
     pub with_estimate: f64,
+    /// Of the ticks with an estimate, the share naming the ground under the robot.
+    #[serde(default)]
+    pub estimate_right: f64,
     /// Ticks whose estimate had held for the dwell.
     pub settled: u64,
     /// Of `settled`, the share acted by the estimate's specialist.
@@ -99,6 +104,7 @@ struct EnvCount {
 struct Tally {
     ticks: u64,
     estimated: u64,
+    right: u64,
     settled: u64,
     agreed: u64,
     switches: u64,
@@ -146,6 +152,7 @@ impl Tally {
             return;
         };
         self.estimated += 1;
+        self.right += u64::from(kind == row.area);
         let specialist = PolicySlot::for_class(kind.code());
         let leaving = env.last.as_ref().and_then(|l| l.slot).or(row.slot);
         if let (Some(specialist), Some(from)) = (specialist, leaving)
@@ -218,6 +225,7 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
         Coverage {
             ticks: t.ticks,
             with_estimate: share(t.estimated, t.ticks),
+            estimate_right: share(t.right, t.estimated),
             settled: t.settled,
             acting_on_estimate: share(t.agreed, t.settled),
             switches: t.switches,

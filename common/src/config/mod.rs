@@ -154,7 +154,8 @@ impl Config {
                 "needs the IMU simulated: set sim.observation = \"imu\" or sim.imu.simulate = true",
             ));
         }
-        self.reproduce.validate(&self.sim.terrain.kinds())
+        self.reproduce
+            .validate(&self.sim.terrain.kinds(), &self.estimator.windows)
     }
 
     /// The travel per decision step below which [`EstimatorConfig::min_speed`] deems a

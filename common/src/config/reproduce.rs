@@ -51,6 +51,13 @@ settings! {
         pub specialist_candidates: usize = 0 => count(0, 100), "checkpoints", Research;
         /// (e) Episodes each candidate drives on the validation courses.
         pub validation_episodes: u64 = 500 => count(1, 1_000_000), "episodes", Advanced;
+        /// (e) Online windows the switching model tries on the mixed validation courses,
+        /// each one of `estimator.windows`; the best of them and `switch-dwells` drives stage
+        /// f (EXPERIMENT E21). Empty: `estimator.online-window` alone, as in the paper.
+        pub switch_windows: Vec<usize> = Vec::new() => count(2, 100_000), "ticks", Research;
+        /// (e) Values of `sim.switch-dwell` tried with each of `switch-windows`. Empty:
+        /// `sim.switch-dwell` alone, as in the paper.
+        pub switch_dwells: Vec<usize> = Vec::new() => count(1, 10_000), "ticks", Research;
         /// (g) Non-inferiority margin of the shape checks in success: "A at least as good as
         /// B" reads "no" only when A falls short of B by more than this many percentage
         /// points of success (or by more than `margin-s`), beyond the noise of the paired
@@ -64,13 +71,25 @@ settings! {
 
 impl ReproduceConfig {
     /// The rules between fields and the world (each field's own range is
-    /// [`super::setting::Setting::check`]'s); `kinds` are the world's terrain kinds.
-    pub(super) fn validate(&self, kinds: &[AreaKind]) -> Result<(), ConfigError> {
+    /// [`super::setting::Setting::check`]'s); `kinds` are the world's terrain kinds and
+    /// `windows` the ones stage d fits a classifier for (`estimator.windows`).
+    pub(super) fn validate(
+        &self,
+        kinds: &[AreaKind],
+        windows: &[usize],
+    ) -> Result<(), ConfigError> {
         if let Some(k) = self.fresh_specialists.iter().find(|k| !kinds.contains(k)) {
             return Err(invalid(
                 "reproduce.fresh-specialists",
                 &self.fresh_specialists,
                 format!("needs a `{}` area in sim.terrain.areas", k.name()),
+            ));
+        }
+        if let Some(w) = self.switch_windows.iter().find(|w| !windows.contains(w)) {
+            return Err(invalid(
+                "reproduce.switch-windows",
+                &self.switch_windows,
+                format!("{w} is not one of estimator.windows {windows:?}, which stage d fits"),
             ));
         }
         Ok(())
@@ -95,6 +114,20 @@ mod tests {
             "{e}"
         );
         assert_eq!(parse(&c.to_toml()).expect("round trip"), c);
+    }
+
+    #[test]
+    fn switch_windows_are_windows_stage_d_fits() {
+        let e = parse("[reproduce]\nswitch-windows = [20, 30]\n").expect_err("30 not fitted");
+        assert!(e.to_string().contains("reproduce.switch-windows"), "{e}");
+        assert!(
+            e.to_string().contains("30 is not one of estimator.windows"),
+            "{e}"
+        );
+        let c = parse("[reproduce]\nswitch-windows = [20, 70]\nswitch-dwells = [5, 10]\n")
+            .expect("valid");
+        assert_eq!(c.reproduce.switch_windows, [20, 70]);
+        assert_eq!(c.reproduce.switch_dwells, [5, 10]);
     }
 
     #[test]

@@ -53,6 +53,8 @@ fn coverage_counts_a_hand_counted_course() {
     // Ticks 5-14 count; tick 10 had no estimate.
     assert_eq!(c.ticks, 10);
     assert!((c.with_estimate - 0.9).abs() < 1e-12);
+    // Of the 9 with one, 9 (flat read on rough) and 14 (rough read on flat) are wrong.
+    assert!((c.estimate_right - 7.0 / 9.0).abs() < 1e-12);
     // Settled: 7 and 13 (held 3), 8, 9 and 14 (the estimate's specialist acted the tick
     // before); 8 disagrees.
     assert_eq!(c.settled, 5);

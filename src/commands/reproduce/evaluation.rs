@@ -3,6 +3,7 @@
 
 use super::legs::{Cell, Evaluated, Legs, legs_in};
 use super::stages::Pipeline;
+use super::tuning::Reading;
 use crate::runtime::{self, coverage_line};
 use anyhow::Context;
 use common::Config;
@@ -134,20 +135,24 @@ impl Pipeline {
         })
     }
 
-    /// SPEC S8's switching policy in `area`: the specialists (FTM and RTM on the paper's
-    /// terrains) served frozen, each env acting with the one its live terrain estimate points
-    /// to (mean actions), through the full runtime with the estimator.
+    /// SPEC S8's switching policy in `area` on `courses`, run as `model` in `eval`: the
+    /// specialists (FTM and RTM on the paper's terrains) served frozen, each env acting with
+    /// the one its live terrain estimate points to (mean actions), through the full runtime
+    /// with the estimator reading the ground as `reading` says.
     pub(super) fn switching(
         &self,
+        model: &str,
         area: AreaKind,
         frozen: &std::collections::BTreeMap<PolicySlot, PathBuf>,
         eval: &Path,
+        courses: Courses,
+        reading: Reading,
     ) -> anyhow::Result<Evaluated> {
-        let courses = self.test_courses();
         let steps = courses.ticks * self.base.reproduce.eval_envs as u64;
         let mut recordings = Vec::new();
-        let mut evaluated = self.evaluate("switching", area, courses, |base, name| {
+        let mut evaluated = self.evaluate(model, area, courses, |base, name| {
             let mut cfg = base.clone();
+            reading.apply(&mut cfg);
             cfg.run.learners.clear();
             cfg.run.frozen = frozen.clone();
             cfg.run.mode = common::config::LearnMode::Async;
@@ -166,9 +171,11 @@ impl Pipeline {
             recordings.push(csv.clone());
             Ok(csv)
         })?;
-        let coverage = Coverage::of_files(&recordings, &self.base.sim)?;
+        let mut read = self.base.clone();
+        reading.apply(&mut read);
+        let coverage = Coverage::of_files(&recordings, &read.sim)?;
         self.say(&format!(
-            "{}: switching on {} ground: {}",
+            "{}: {model} on {} ground: {}",
             courses.stage,
             area.name(),
             coverage_line(&coverage, self.base.sim.decision_dt())

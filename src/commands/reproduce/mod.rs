@@ -14,7 +14,9 @@
 //!    stage d's classifier; those of `reproduce.fresh-specialists` start from new weights
 //!    instead (EXPERIMENT E19). `e-select` (with `reproduce.specialist-candidates`): each
 //!    specialist is the best on its own terrain's validation courses of the general model
-//!    and stage e's milestones;
+//!    and stage e's milestones. `e-switch` (with `reproduce.switch-windows` or
+//!    `switch-dwells`): the online window and dwell switching reads the ground with, the
+//!    best on the mixed validation courses;
 //! f. `f-eval`: success rate and reach time of the general model and every specialist in
 //!    each area (Table 1), and of switching between the specialists with stage d's
 //!    classifier, every model on the same seeded courses (`EpisodeStart::Course`), in every
@@ -24,7 +26,7 @@
 //!
 //! Modules: [`pipeline`] runs the stages in order, [`stages`] holds the pipeline's setting
 //! and keeps the stages' directories and done markers, [`evaluation`] drives the seeded
-//! courses whose [`legs`] pair up, [`selection`] picks the specialists, [`statistics`] and
+//! courses whose [`legs`] pair up, [`selection`] picks the specialists, [`tuning`] the switch's window and dwell, [`statistics`] and
 //! [`checks`] compare the models, [`report`] writes the Markdown.
 
 mod checks;
@@ -36,6 +38,7 @@ mod report;
 mod selection;
 mod stages;
 mod statistics;
+mod tuning;
 
 use super::UserError;
 use anyhow::Context;

@@ -5,10 +5,12 @@ use super::legs::Evaluated;
 use super::report::report;
 use super::selection::{Role, Selection, roles, specialists};
 use super::stages::Pipeline;
+use super::tuning::Reading;
 use crate::runtime;
 use anyhow::Context;
 use common::config::{Acting, AreaKind, PolicySlot};
 use common::{Config, run_dir};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -48,8 +50,14 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
     train_specialists(p, &roles)?;
     let selections = specialists(p)?;
     let models = models(p, &policies, general, &roles, &selections)?;
-    let cells = evaluate(p, &models, &roles, &selections)?;
-    let report = report(p, &cells, &selections)?;
+    let frozen: BTreeMap<PolicySlot, PathBuf> = roles
+        .iter()
+        .map(|r| r.slot)
+        .zip(selections.iter().map(|s| s.checkpoint().to_path_buf()))
+        .collect();
+    let (reading, tuning) = p.reading(&frozen)?;
+    let cells = evaluate(p, &models, &frozen, reading)?;
+    let report = report(p, &cells, &selections, tuning.as_ref())?;
     let path = p.out.join("report.md");
     std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
     println!("report: {}", path.display());
@@ -178,8 +186,8 @@ fn models(
 fn evaluate(
     p: &Pipeline,
     models: &[(&'static str, PathBuf)],
-    roles: &[Role],
-    selections: &[Selection],
+    frozen: &BTreeMap<PolicySlot, PathBuf>,
+    reading: Reading,
 ) -> anyhow::Result<Vec<Evaluated>> {
     if let Some(cells) = evaluated_before(p)? {
         return Ok(cells);
@@ -193,13 +201,8 @@ fn evaluate(
             cells.push(p.evaluate_policy(name, weights, area, p.test_courses(), &eval)?);
         }
     }
-    let frozen = roles
-        .iter()
-        .map(|r| r.slot)
-        .zip(selections.iter().map(|s| s.checkpoint().to_path_buf()))
-        .collect();
     for &area in &areas {
-        cells.push(p.switching(area, &frozen, &eval)?);
+        cells.push(p.switching("switching", area, frozen, &eval, p.test_courses(), reading)?);
     }
     std::fs::write(eval.join(CELLS_JSON), serde_json::to_string(&cells)?)?;
     p.finish("f-eval", serde_json::json!({ "cells": cells.len() }))?;

@@ -8,6 +8,7 @@ use super::legs::{Cell, Evaluated};
 use super::selection::{GENERAL, Selection, chosen_before, roles};
 use super::stages::Pipeline;
 use super::statistics::mean_ci;
+use super::tuning::Tuning;
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};
 use common::run_dir::{self, learner_dir};
@@ -158,6 +159,7 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
     md += &seeds_shape_checks(runs, beside);
     md += &coverage::seeds_section(runs);
     md += &seeds_selection(runs)?;
+    md += &coverage::seeds_tuning(runs)?;
     md += &seeds_table_3(runs, beside)?;
     Ok(md)
 }
@@ -314,6 +316,7 @@ pub(super) fn report(
     p: &Pipeline,
     cells: &[Evaluated],
     selections: &[Selection],
+    tuning: Option<&Tuning>,
 ) -> anyhow::Result<String> {
     let r = &p.base.reproduce;
     let mut md = table_1(p, cells);
@@ -329,6 +332,7 @@ pub(super) fn report(
     md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
     md += &coverage::section(cells, p.base.sim.decision_dt());
     md += &selection_table(selections, r.validation_episodes);
+    md += &tuning.map_or(String::new(), |t| coverage::tuning_section(t, p));
     md += &analysis(p)?;
     md += &learning_curves(p);
     md += &maps(p);

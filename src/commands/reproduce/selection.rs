@@ -198,7 +198,7 @@ impl Pipeline {
 /// on the legs all drove is within `margin_pp` of the highest (closer is noise at validation
 /// sizes), the one with the shortest mean reach time on the legs all of those reached; the
 /// first of equals (the least fine-tuned candidate, in [`Pipeline::select`]'s order).
-fn best(legs: &[Legs], margin_pp: f64) -> usize {
+pub(super) fn best(legs: &[Legs], margin_pp: f64) -> usize {
     let all: Vec<&Legs> = legs.iter().collect();
     let driven = common_legs(&all);
     let success: Vec<f64> = (0..legs.len())
