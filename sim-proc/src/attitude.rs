@@ -3,7 +3,8 @@
 //! Group", IEEE Trans. Automatic Control 53(5), 2008, eq. 32). The gyroscope is integrated;
 //! the accelerometer's direction, taken as gravity's, pulls the estimated up axis toward it
 //! with gain `kp`, and an integral with gain `ki` learns the gyroscope's bias. While the
-//! specific force's magnitude is far from g (a bump, a landing) the accelerometer is ignored.
+//! specific force's magnitude is far from the world's g (a bump, a landing) the accelerometer
+//! is ignored.
 //! Yaw is unobservable from gravity: it is the integrated gyroscope alone, from the heading
 //! the filter was started with.
 
@@ -13,13 +14,12 @@ use common::config::{FilterConfig, ImuConfig};
 use glam::{DQuat, DVec3};
 use rapier3d::prelude::{RigidBody, Vector};
 
-/// Standard gravity, m/s²: the magnitude the accelerometer gate compares against.
-const G: f64 = 9.81;
-
 /// One robot's attitude estimate.
 #[derive(Debug, Clone)]
 pub struct Mahony {
     cfg: FilterConfig,
+    /// Gravity's magnitude, m/s²: what the accelerometer gate compares against.
+    g: f64,
     /// Body to world.
     q: DQuat,
     /// The gyroscope bias learned by the integral term, rad/s.
@@ -27,10 +27,11 @@ pub struct Mahony {
 }
 
 impl Mahony {
-    /// A filter started at attitude `q` with no bias learned.
-    pub fn new(cfg: &FilterConfig, q: DQuat) -> Self {
+    /// A filter started at attitude `q` with no bias learned, in a world of gravity `g` m/s².
+    pub fn new(cfg: &FilterConfig, g: f64, q: DQuat) -> Self {
         Self {
             cfg: cfg.clone(),
+            g,
             q: q.normalize(),
             bias: DVec3::ZERO,
         }
@@ -50,7 +51,7 @@ impl Mahony {
     pub fn update(&mut self, s: &ImuSample, dt: f64) {
         let norm = s.accel.length();
         let mut correction = DVec3::ZERO;
-        if norm > 0.0 && (norm - G).abs() <= self.cfg.gate * G {
+        if norm > 0.0 && (norm - self.g).abs() <= self.cfg.gate * self.g {
             // Error between the measured up direction and the estimated one, both in the
             // body frame: their cross product turns the estimate toward the measurement.
             let measured = s.accel / norm;
@@ -77,11 +78,12 @@ pub struct Sensing {
 }
 
 impl Sensing {
-    /// The IMU of env `id` (its errors drawn from its own stream of the run `seed`).
-    pub fn new(cfg: &ImuConfig, seed: u64, id: usize) -> Self {
+    /// The IMU of env `id` (its errors drawn from its own stream of the run `seed`) in a world
+    /// of gravity `g` m/s².
+    pub fn new(cfg: &ImuConfig, g: f64, seed: u64, id: usize) -> Self {
         Self {
             imu: Imu::new(cfg, Rng::derive(seed, IMU_STREAMS + id as u64)),
-            filter: Mahony::new(&cfg.filter, DQuat::IDENTITY),
+            filter: Mahony::new(&cfg.filter, g, DQuat::IDENTITY),
             last_velocity: DVec3::ZERO,
         }
     }
@@ -99,7 +101,7 @@ impl Sensing {
                 .read(rot, DVec3::ZERO, DVec3::ZERO, gravity.as_dvec3(), dt)
                 .gyro;
         }
-        self.filter = Mahony::new(&self.filter.cfg, rot);
+        self.filter = Mahony::new(&self.filter.cfg, self.filter.g, rot);
         if n > 0 {
             self.filter.bias = sum / n as f64;
         }
@@ -137,7 +139,8 @@ mod tests {
     use crate::imu::tests::quiet;
 
     const DT: f64 = 0.02;
-    const GRAVITY: DVec3 = DVec3::new(0.0, -9.81, 0.0);
+    const G: f64 = 9.81;
+    const GRAVITY: DVec3 = DVec3::new(0.0, -G, 0.0);
 
     /// Angle between two attitudes, degrees.
     fn off_deg(a: DQuat, b: DQuat) -> f64 {
@@ -158,7 +161,7 @@ mod tests {
         let mut imu = Imu::new(&cfg, Rng::new(2));
         let truth = DQuat::IDENTITY;
         let start = DQuat::from_rotation_x(10f64.to_radians());
-        let mut filter = Mahony::new(&cfg.filter, start);
+        let mut filter = Mahony::new(&cfg.filter, G, start);
         assert!((off_deg(filter.attitude(), truth) - 10.0).abs() < 1e-9);
         still(&mut imu, &mut filter, truth, 5.0);
         let off = off_deg(filter.attitude(), truth);
@@ -179,7 +182,7 @@ mod tests {
         cfg.filter.ki = ki;
         let mut imu = Imu::new(&cfg, Rng::new(3));
         let truth = DQuat::IDENTITY;
-        let mut filter = Mahony::new(&cfg.filter, truth);
+        let mut filter = Mahony::new(&cfg.filter, G, truth);
         let bias = DVec3::new(0.02, 0.0, 0.0);
         for _ in 0..(120.0 / DT) as usize {
             let mut s = imu.read(truth, DVec3::ZERO, DVec3::ZERO, GRAVITY, DT);
@@ -206,7 +209,7 @@ mod tests {
     #[test]
     fn a_spawn_calibration_starts_the_filter_near_the_gyros_turn_on_bias() {
         let cfg = ImuConfig::default();
-        let mut sensing = Sensing::new(&cfg, 7, 0);
+        let mut sensing = Sensing::new(&cfg, G, 7, 0);
         let turn_on = sensing.imu.gyro_bias();
         assert!(
             turn_on.length() > 1e-3,
@@ -224,6 +227,31 @@ mod tests {
     }
 
     #[test]
+    fn on_the_moon_the_gate_trusts_lunar_gravity_not_earths() {
+        // A still robot at 1.62 m/s² reads a sixth of Earth's specific force: the filter
+        // made for the Moon corrects a 10° start from it, one made for Earth ignores it all.
+        let moon = 1.62;
+        let cfg = error_free();
+        let mut imu = Imu::new(&cfg, Rng::new(4));
+        let start = DQuat::from_rotation_x(10f64.to_radians());
+        let mut lunar = Mahony::new(&cfg.filter, moon, start);
+        let mut earth = Mahony::new(&cfg.filter, G, start);
+        for _ in 0..(5.0 / DT) as usize {
+            let s = imu.read(
+                DQuat::IDENTITY,
+                DVec3::ZERO,
+                DVec3::ZERO,
+                DVec3::Y * -moon,
+                DT,
+            );
+            lunar.update(&s, DT);
+            earth.update(&s, DT);
+        }
+        assert!(off_deg(lunar.attitude(), DQuat::IDENTITY) < 0.5);
+        assert!((off_deg(earth.attitude(), DQuat::IDENTITY) - 10.0).abs() < 1e-9);
+    }
+
+    #[test]
     fn the_gate_ignores_a_two_g_jolt() {
         let cfg = error_free();
         let truth = DQuat::IDENTITY;
@@ -231,7 +259,7 @@ mod tests {
             gyro: DVec3::ZERO,
             accel: DVec3::new(2.0 * 9.81, 9.81, 0.0),
         };
-        let mut gated = Mahony::new(&cfg.filter, truth);
+        let mut gated = Mahony::new(&cfg.filter, G, truth);
         gated.update(&jolt, DT);
         assert_eq!(gated.attitude(), truth);
         // Without the gate the same jolt tilts the estimate.
@@ -240,6 +268,7 @@ mod tests {
                 gate: 10.0,
                 ..cfg.filter.clone()
             },
+            G,
             truth,
         );
         open.update(&jolt, DT);

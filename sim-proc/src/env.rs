@@ -141,7 +141,7 @@ impl Env {
             action: [0.0; 2],
             sensing: cfg
                 .simulates_imu()
-                .then(|| Sensing::new(&cfg.imu, seed, id)),
+                .then(|| Sensing::new(&cfg.imu, cfg.gravity, seed, id)),
             contact: floor_contact(cfg, AreaKind::Flat),
             sinkage: None,
         };
@@ -466,6 +466,7 @@ pub fn build_world(
     ground: AreaKind,
 ) -> (PhysicsWorld, Robot) {
     let mut world = PhysicsWorld::new();
+    world.gravity = Vector::Y * -(cfg.gravity as f32);
     world.integration_parameters.dt = cfg.physics_dt as f32;
     world.integration_parameters.length_unit = cfg.robot.length_unit as f32;
     world.integration_parameters.num_solver_iterations = cfg.robot.solver_iterations;

@@ -73,6 +73,36 @@ fn rests_at_the_geometric_height_on_flat_ground() {
 }
 
 #[test]
+fn a_dropped_robot_falls_as_half_g_t_squared_on_the_moon_and_on_earth() {
+    for g in [1.62, 9.81] {
+        let (mut cfg, terrain) = plane(WheelModel::Joint);
+        cfg.gravity = g;
+        cfg.physics_dt = 1.0 / 240.0;
+        let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0, AreaKind::Flat);
+        // Lifted 2 m, still: 0.4 s of free fall drops it at most 0.8 m.
+        for (_, body) in world.bodies.iter_mut() {
+            body.set_translation(body.translation() + glam::Vec3::Y * 2.0, true);
+            body.set_linvel(glam::Vec3::ZERO, true);
+            body.set_angvel(glam::Vec3::ZERO, true);
+        }
+        let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
+        let start = world.bodies[robot.chassis].translation().y;
+        let n: u32 = 96;
+        for _ in 0..n {
+            world.step_with_events(&held, &());
+        }
+        let drop = f64::from(start - world.bodies[robot.chassis].translation().y);
+        let t = f64::from(n) * cfg.physics_dt;
+        let want = 0.5 * g * t * t;
+        // The integrator's steps land (1 + 1/n) past the continuous curve: 1 % here.
+        assert!(
+            (drop / want - 1.0).abs() < 0.015,
+            "g = {g}: fell {drop:.4} m in {t} s, ½·g·t² = {want:.4} m"
+        );
+    }
+}
+
+#[test]
 fn equal_commands_drive_straight_at_omega_r() {
     let omega = 3.0f32;
     let t = 5.0;

@@ -66,6 +66,9 @@ settings! {
         /// the sim a tenth of its speed; the price is up to this much delay before a reader sees
         /// a tick. 0: wake them on every tick.
         pub telemetry_notify_us: usize = 1000 => count(0, 1_000_000), "µs", Advanced;
+        /// Gravity's magnitude, pulling along -y: 9.81 on Earth (the paper's world), 1.62 on the
+        /// Moon. The IMU's accelerometer reads it and its filter trusts readings near it.
+        pub gravity: f64 = 9.81 => real(0.1, 50.0), "m/s²", Advanced;
         /// Physics time step: contacts are found once per step (SPEC S2); a simulated IMU, which
         /// samples once per step, needs at most 0.02.
         pub physics_dt: f64 = 1.0 / 30.0 => real(1e-4, 0.1), "s", Advanced;
