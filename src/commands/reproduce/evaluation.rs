@@ -217,10 +217,11 @@ impl Pipeline {
         self.courses("f-eval", self.base.run.seed, r.eval_episodes)
     }
 
-    /// Stage e's validation courses, `VALIDATION_SEEDS` away from stage f's.
-    pub(super) fn validation_courses(&self) -> Courses {
+    /// Stage e's validation courses, `VALIDATION_SEEDS` away from stage f's, driven by
+    /// `stage` (for progress lines).
+    pub(super) fn validation_courses(&self, stage: &'static str) -> Courses {
         let r = &self.base.reproduce;
         let seed = self.base.run.seed.wrapping_add(VALIDATION_SEEDS);
-        self.courses("e-select", seed, r.validation_episodes)
+        self.courses(stage, seed, r.validation_episodes)
     }
 }

@@ -164,7 +164,7 @@ impl Pipeline {
                 .filter(|(i, (update, _))| *i == last || update.is_multiple_of(every))
                 .map(|(_, (update, ckpt))| (format!("update {update}"), ckpt)),
         );
-        let courses = self.validation_courses();
+        let courses = self.validation_courses("e-select");
         let mut candidates = Vec::new();
         let mut legs = Vec::new();
         for (k, (label, checkpoint)) in tried.into_iter().enumerate() {

@@ -127,7 +127,7 @@ impl Pipeline {
             "{STAGE}: switching with {} online windows × dwells on the mixed validation courses",
             all.len()
         ));
-        let courses = self.validation_courses();
+        let courses = self.validation_courses(STAGE);
         let mut tried = Vec::new();
         let mut legs: Vec<Legs> = Vec::new();
         for reading in all {
