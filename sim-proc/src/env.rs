@@ -1,8 +1,9 @@
 //! One environment: a rapier world holding the shared terrain and one robot, the paper's
 //! episode bookkeeping, and the observation (SPEC S3–S5).
 
+use crate::actuator::Actuator;
 use crate::attitude::Sensing;
-use crate::robot::{self, Drive, Robot, TERRAIN_GROUP};
+use crate::robot::{self, Robot, TERRAIN_GROUP};
 use crate::sinkage::Sinkage;
 use crate::task::{self, Ending, Episode};
 use crate::terrain::Terrain;
@@ -102,6 +103,8 @@ pub struct Env {
     /// Worlds the robot has been placed in since the first.
     placements: u64,
     action: [f32; 2],
+    /// The latency and lag between the clipped action and the wheels.
+    actuator: Actuator,
     /// The IMU and its filter, when [`SimConfig::simulates_imu`].
     sensing: Option<Sensing>,
     /// The floor's friction and combine rule now (see [`floor_contact`]).
@@ -139,6 +142,7 @@ impl Env {
             faults: 0,
             placements: 0,
             action: [0.0; 2],
+            actuator: Actuator::new(&cfg.robot, cfg.physics_dt),
             sensing: cfg
                 .simulates_imu()
                 .then(|| Sensing::new(&cfg.imu, cfg.gravity, seed, id)),
@@ -280,6 +284,7 @@ impl Env {
         self.contact = floor_contact(&self.cfg, self.ground());
         self.sinkage =
             (self.cfg.terrain.rects_of(AreaKind::Sand).next().is_some()).then(Sinkage::default);
+        self.actuator.reset();
         if let Some(s) = self.sensing.as_mut() {
             s.place(
                 &self.world.bodies[self.robot.chassis],
@@ -338,12 +343,18 @@ impl Env {
     /// quarantines the bodies. A panic inside rapier on a degenerate state is caught as well
     /// (the multibody wheels the robot first had did panic so); either way only this env's
     /// world is lost, and the caller respawns it.
-    fn physics_substeps(&mut self, drive: &Drive) -> bool {
-        let (world, sensing) = (&mut self.world, &mut self.sensing);
-        let (substeps, dt, chassis) = (self.cfg.substeps, self.cfg.physics_dt, self.robot.chassis);
+    fn physics_substeps(&mut self) -> bool {
+        let (world, sensing, actuator) = (&mut self.world, &mut self.sensing, &mut self.actuator);
+        let (robot, cfg, action) = (&self.robot, &self.cfg, self.action);
+        let (substeps, dt, chassis) = (cfg.substeps, cfg.physics_dt, robot.chassis);
         let stepped = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
-            for _ in 0..substeps {
-                world.step_with_events(drive, &());
+            // Ideal actuators take the command once per decision step, as the paper's.
+            let mut drive = robot.command(world, &cfg.robot, actuator.apply(action));
+            for step in 0..substeps {
+                if step > 0 && !actuator.is_ideal() {
+                    drive = robot.command(world, &cfg.robot, actuator.apply(action));
+                }
+                world.step_with_events(&drive, &());
                 if !world.quarantine().is_empty() {
                     return false;
                 }
@@ -368,12 +379,9 @@ impl Env {
                 0.0
             }
         });
-        let drive = self
-            .robot
-            .command(&mut self.world, &self.cfg.robot, self.action);
         self.contact_ground();
         self.sink();
-        let healthy = self.physics_substeps(&drive);
+        let healthy = self.physics_substeps();
         self.tick += 1;
         let p = self.pose();
         let result = if healthy && p.is_finite() {

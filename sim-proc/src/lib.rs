@@ -6,6 +6,7 @@
 //! a non-finite physics state ends that env's episode (truncated) and respawns it, it never
 //! stops the process.
 
+pub mod actuator;
 pub mod attitude;
 pub mod cli;
 pub mod controllers;

@@ -102,6 +102,52 @@ fn a_dropped_robot_falls_as_half_g_t_squared_on_the_moon_and_on_earth() {
     }
 }
 
+/// How far the robot of an env on a plane drives in each decision step of one physics step:
+/// 5 s at rest, then both wheels commanded at 2 rad/s, with `latency` steps of delay.
+fn steps_with_latency(latency: usize) -> Vec<f64> {
+    let (mut cfg, terrain) = plane(WheelModel::Joint);
+    cfg.substeps = 1;
+    cfg.robot.command_latency = latency;
+    let mut env = Env::new(0, &cfg, &terrain, 5);
+    for _ in 0..150 {
+        env.step([0.0, 0.0]);
+    }
+    let mut last = env.pose().pos;
+    (0..40)
+        .map(|_| {
+            env.step([2.0, 2.0]);
+            let p = env.pose().pos;
+            let step = (p[0] - last[0]).hypot(p[2] - last[2]);
+            last = p;
+            step
+        })
+        .collect()
+}
+
+#[test]
+fn a_latency_of_k_physics_steps_delays_the_response_by_k_steps() {
+    // At rest the robot creeps about 0.06 mm a step; driving, it moves 0.8 mm in the first.
+    let at_once = steps_with_latency(0);
+    assert!(
+        at_once[0] > 5e-4,
+        "the undelayed robot moves at once: {at_once:?}"
+    );
+    for k in [1, 3] {
+        let late = steps_with_latency(k);
+        assert!(
+            late[..k].iter().all(|d| *d < 1e-4),
+            "k = {k}: at rest for k steps: {late:?}"
+        );
+        for (i, d) in at_once[..40 - k].iter().enumerate() {
+            assert!(
+                (late[i + k] - d).abs() < 2e-5,
+                "k = {k}, step {i}: {} against {d}",
+                late[i + k]
+            );
+        }
+    }
+}
+
 #[test]
 fn equal_commands_drive_straight_at_omega_r() {
     let omega = 3.0f32;

@@ -61,6 +61,12 @@ settings! {
         /// wheel's own small inertia): at 10^5 the torque limit bounds the push and a robot climbs
         /// 12° at its command; 1000 stalls there at 1 rad/s (docs/RESULTS.md, R31).
         pub motor_damping: f64 = 1e5 => real(1e-6, 1e6), "", Advanced;
+        /// Physics steps between a wheel command and the motors receiving it (a real robot's
+        /// bus and controller delay; at the 1/30 s step, 3 is 100 ms). 0: at once, the paper's.
+        pub command_latency: usize = 0 => count(0, 100), "physics steps", Advanced;
+        /// Time constant of the motors' first-order response: each physics step the speed they
+        /// drive at moves 1 - exp(-dt/τ) of the way to the command. 0: at once, the paper's.
+        pub motor_time_constant: f64 = 0.0 => real(0.0, 10.0), "s", Advanced;
         /// Action clip: each wheel command in [-limit, limit] (SPEC S2).
         pub action_limit: f64 = 3.0 => real(1e-6, 100.0), "rad/s", Advanced;
         /// rapier's length unit (a robot this small halves its step cost at ≈ 0.2).
