@@ -19,20 +19,7 @@ const CELLS_JSON: &str = "cells.json";
 
 /// Stage f's cells, if it finished.
 pub(super) fn evaluated_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Evaluated>>> {
-    if !p.done("f-eval") {
-        return Ok(None);
-    }
-    let eval = p.stage_dir("f-eval");
-    let path = eval.join(CELLS_JSON);
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text).map(Some).with_context(|| {
-        format!(
-            "{} is not stage f's legs (an older lavatube's?): remove {} to evaluate again",
-            path.display(),
-            eval.display()
-        )
-    })
+    p.kept("f-eval", CELLS_JSON, "stage f's legs")
 }
 
 /// One seed's pipeline, stages a–g in `p.out`.

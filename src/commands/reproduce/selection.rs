@@ -43,18 +43,7 @@ pub(super) const GENERAL: &str = "general";
 
 /// Stage `e-select`'s choice, if it finished.
 pub(super) fn chosen_before(p: &Pipeline) -> anyhow::Result<Option<Vec<Selection>>> {
-    if !p.done("e-select") {
-        return Ok(None);
-    }
-    let path = p.stage_dir("e-select").join(SELECTION_JSON);
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text).map(Some).with_context(|| {
-        format!(
-            "{} is not stage e's selection: remove its directory to select again",
-            path.display()
-        )
-    })
+    p.kept("e-select", SELECTION_JSON, "stage e's selection")
 }
 
 /// A terrain kind's specialist: its name in the tables and the slot that fine-tunes it.

@@ -72,6 +72,30 @@ impl Pipeline {
             .with_context(|| format!("cannot write {}", p.display()))
     }
 
+    /// What stage `name` kept in its `file`, if it finished; `what` names it in the error
+    /// when the file is not that (an older lavatube's).
+    pub(super) fn kept<T: serde::de::DeserializeOwned>(
+        &self,
+        name: &str,
+        file: &str,
+        what: &str,
+    ) -> anyhow::Result<Option<T>> {
+        if !self.done(name) {
+            return Ok(None);
+        }
+        let dir = self.stage_dir(name);
+        let path = dir.join(file);
+        let text = std::fs::read_to_string(&path)
+            .with_context(|| format!("cannot read {}", path.display()))?;
+        serde_json::from_str(&text).map(Some).with_context(|| {
+            format!(
+                "{} is not {what} (an older lavatube's?): remove {} to run stage {name} again",
+                path.display(),
+                dir.display()
+            )
+        })
+    }
+
     /// Starts stage `name` afresh (an unfinished earlier attempt is removed).
     pub(super) fn fresh(&self, name: &str) -> anyhow::Result<PathBuf> {
         let dir = self.stage_dir(name);

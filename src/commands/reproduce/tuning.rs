@@ -93,18 +93,7 @@ pub(super) fn candidates(cfg: &Config) -> Vec<Reading> {
 
 /// Stage e-switch's choice, if it finished.
 pub(super) fn tuned_before(p: &Pipeline) -> anyhow::Result<Option<Tuning>> {
-    if !p.done(STAGE) {
-        return Ok(None);
-    }
-    let path = p.stage_dir(STAGE).join(TUNING_JSON);
-    let text = std::fs::read_to_string(&path)
-        .with_context(|| format!("cannot read {}", path.display()))?;
-    serde_json::from_str(&text).map(Some).with_context(|| {
-        format!(
-            "{} is not stage e's choice of reading: remove its directory to choose again",
-            path.display()
-        )
-    })
+    p.kept(STAGE, TUNING_JSON, "stage e's choice of reading")
 }
 
 impl Pipeline {
