@@ -25,9 +25,10 @@ pub struct Coverage {
     pub ticks: u64,
     /// Of `ticks`, the share with an estimate.
     pub with_estimate: f64,
-    /// Of the ticks with an estimate, the share naming the ground under the robot.
+    /// Of the ticks with an estimate, the share naming the ground under the robot; `None` in
+    /// a record of an older lavatube, which did not count it.
     #[serde(default)]
-    pub estimate_right: f64,
+    pub estimate_right: Option<f64>,
     /// Ticks whose estimate had held for the dwell.
     pub settled: u64,
     /// Of `settled`, the share acted by the estimate's specialist.
@@ -52,6 +53,12 @@ pub struct Crossings {
 }
 
 impl Coverage {
+    /// The live accuracy as a percentage with one decimal, `-` when not counted.
+    pub fn right_pct(&self) -> String {
+        self.estimate_right
+            .map_or("-".into(), |r| format!("{:.1}", 100.0 * r))
+    }
+
     /// Each kind crossed into, `kind detected/crossings after D s` at decision step `dt`
     /// seconds, comma-separated; `None` when the robots crossed no ground.
     pub fn crossings_text(&self, dt: f64) -> Option<String> {
@@ -225,7 +232,7 @@ impl<F: Fn(PolicySlot) -> u32> Counter<F> {
         Coverage {
             ticks: t.ticks,
             with_estimate: share(t.estimated, t.ticks),
-            estimate_right: share(t.right, t.estimated),
+            estimate_right: Some(share(t.right, t.estimated)),
             settled: t.settled,
             acting_on_estimate: share(t.agreed, t.settled),
             switches: t.switches,

@@ -160,9 +160,9 @@ impl Summary {
 /// step `dt` seconds.
 pub fn coverage_line(c: &common::coverage::Coverage, dt: f64) -> String {
     format!(
-        "switching: an estimate on {:.1}% of ticks ({:.1}% right), acted on in {:.1}%, {:.1} switches per 100 m; crossings detected: {}",
+        "switching: an estimate on {:.1}% of ticks ({}% right), acted on in {:.1}%, {:.1} switches per 100 m; crossings detected: {}",
         100.0 * c.with_estimate,
-        100.0 * c.estimate_right,
+        c.right_pct(),
         100.0 * c.acting_on_estimate,
         c.switches_per_100m,
         c.crossings_text(dt).unwrap_or_else(|| "none".into())

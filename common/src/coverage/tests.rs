@@ -54,7 +54,8 @@ fn coverage_counts_a_hand_counted_course() {
     assert_eq!(c.ticks, 10);
     assert!((c.with_estimate - 0.9).abs() < 1e-12);
     // Of the 9 with one, 9 (flat read on rough) and 14 (rough read on flat) are wrong.
-    assert!((c.estimate_right - 7.0 / 9.0).abs() < 1e-12);
+    assert!((c.estimate_right.expect("counted") - 7.0 / 9.0).abs() < 1e-12);
+    assert_eq!(c.right_pct(), "77.8");
     // Settled: 7 and 13 (held 3), 8, 9 and 14 (the estimate's specialist acted the tick
     // before); 8 disagrees.
     assert_eq!(c.settled, 5);
@@ -88,4 +89,17 @@ fn a_longer_leave_dwell_settles_later() {
     let c = counter.finish();
     assert_eq!(c.settled, 4);
     assert!((c.acting_on_estimate - 0.75).abs() < 1e-12);
+}
+
+#[test]
+fn an_older_record_without_live_accuracy_shows_none() {
+    let mut counter = Counter::new(|_| 3);
+    rows().iter().for_each(|r| counter.see(r));
+    let mut json = serde_json::to_value(counter.finish()).expect("json");
+    json.as_object_mut()
+        .expect("an object")
+        .remove("estimate_right");
+    let old: Coverage = serde_json::from_value(json).expect("an older record reads");
+    assert_eq!(old.estimate_right, None);
+    assert_eq!(old.right_pct(), "-");
 }

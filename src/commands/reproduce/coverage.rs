@@ -25,11 +25,11 @@ pub(super) fn section(cells: &[Evaluated], dt: f64) -> String {
     for e in cells {
         let Some(c) = &e.coverage else { continue };
         md += &format!(
-            "| {} | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} |\n",
+            "| {} | {} | {:.1} | {} | {:.1} | {:.1} | {} |\n",
             e.area.name(),
             c.ticks,
             100.0 * c.with_estimate,
-            100.0 * c.estimate_right,
+            c.right_pct(),
             100.0 * c.acting_on_estimate,
             c.switches_per_100m,
             c.crossings_text(dt).unwrap_or_else(|| "-".into())
@@ -38,9 +38,10 @@ pub(super) fn section(cells: &[Evaluated], dt: f64) -> String {
     md
 }
 
-/// `mean ± ci` of `f` over the seeds' coverage of ground `area`.
-fn over_seeds(covs: &[&Coverage], f: impl Fn(&Coverage) -> Option<f64>, digits: usize) -> String {
-    let xs: Vec<f64> = covs.iter().filter_map(|c| f(c)).collect();
+/// `mean ± ci` of `f` over the seeds' records `xs` (those it has a value for), `-` when none
+/// has one.
+fn over_seeds<T>(xs: &[T], f: impl Fn(&T) -> Option<f64>, digits: usize) -> String {
+    let xs: Vec<f64> = xs.iter().filter_map(f).collect();
     if xs.is_empty() {
         return "-".into();
     }
@@ -72,7 +73,7 @@ pub(super) fn seeds_section(runs: &[(Pipeline, Vec<Evaluated>)]) -> String {
             "| {} | {} | {} | {} | {} | {} |\n",
             e.area.name(),
             over_seeds(&covs, |c| Some(100.0 * c.with_estimate), 1),
-            over_seeds(&covs, |c| Some(100.0 * c.estimate_right), 1),
+            over_seeds(&covs, |c| c.estimate_right.map(|r| 100.0 * r), 1),
             over_seeds(&covs, |c| Some(100.0 * c.acting_on_estimate), 1),
             over_seeds(&covs, |c| Some(c.switches_per_100m), 1),
             crossings_over_seeds(&covs, dt)
@@ -132,14 +133,14 @@ pub(super) fn tuning_section(t: &Tuning, p: &Pipeline) -> String {
     for (k, x) in t.tried.iter().enumerate() {
         let c = &x.coverage;
         md += &format!(
-            "| {} | {} | {:.1} ({}) | {} | {:.1} | {:.1} | {:.1} | {:.1} | {} | {} |\n",
+            "| {} | {} | {:.1} ({}) | {} | {:.1} | {} | {:.1} | {:.1} | {} | {} |\n",
             x.reading.window,
             x.reading.dwell,
             x.cell.success_pct(),
             x.cell.episodes,
             x.cell.reach(),
             100.0 * c.with_estimate,
-            100.0 * c.estimate_right,
+            c.right_pct(),
             100.0 * c.acting_on_estimate,
             c.switches_per_100m,
             c.crossings_text(dt).unwrap_or_else(|| "-".into()),
@@ -171,11 +172,6 @@ pub(super) fn seeds_tuning(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
             .filter_map(|(_, t)| t.tried.iter().find(|y| y.reading == x.reading))
             .collect();
         let covs: Vec<&Coverage> = tried.iter().map(|y| &y.coverage).collect();
-        let of = |f: &dyn Fn(&Tried) -> Option<f64>, digits: usize| {
-            let xs: Vec<f64> = tried.iter().filter_map(|y| f(y)).collect();
-            let (m, h) = mean_ci(&xs);
-            format!("{m:.digits$} ± {h:.digits$}")
-        };
         let chosen: Vec<String> = tunings
             .iter()
             .filter(|(_, t)| t.reading() == x.reading)
@@ -185,13 +181,14 @@ pub(super) fn seeds_tuning(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
             "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
             x.reading.window,
             x.reading.dwell,
-            of(&|y| Some(y.cell.success_pct()), 1),
-            of(
-                &|y| (y.cell.successes > 0).then_some(y.cell.mean_reach_s),
+            over_seeds(&tried, |y| Some(y.cell.success_pct()), 1),
+            over_seeds(
+                &tried,
+                |y| (y.cell.successes > 0).then_some(y.cell.mean_reach_s),
                 2
             ),
-            of(&|y| Some(100.0 * y.coverage.estimate_right), 1),
-            of(&|y| Some(100.0 * y.coverage.acting_on_estimate), 1),
+            over_seeds(&tried, |y| y.coverage.estimate_right.map(|r| 100.0 * r), 1),
+            over_seeds(&tried, |y| Some(100.0 * y.coverage.acting_on_estimate), 1),
             crossings_over_seeds(&covs, dt),
             if chosen.is_empty() {
                 "-".into()
