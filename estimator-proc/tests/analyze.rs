@@ -189,29 +189,34 @@ fn online_replay_reports_accuracy_and_delay() {
     assert!(out.join("online.md").exists());
 }
 
+/// `estimator-proc kinds TRACES` with `flag PATH` refused: its error, which must be one line,
+/// and nothing written to the output directory.
+fn kinds_refused(dir: &Path, traces: &Path, flag: &str, path: &Path) -> String {
+    let out = dir.join("o");
+    let argv = [
+        "estimator-proc",
+        "kinds",
+        traces.to_str().expect("utf8"),
+        flag,
+        path.to_str().expect("utf8"),
+        "--out",
+        out.to_str().expect("utf8"),
+    ];
+    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
+    let msg = format!("{:#}", estimator_proc::run(cli).expect_err("refused"));
+    assert!(!msg.contains('\n'), "{msg}");
+    assert!(!out.exists(), "nothing written: {msg}");
+    msg
+}
+
 #[test]
 fn a_broken_model_file_is_named_in_one_line() {
     let tmp = tempfile::tempdir().expect("tempdir");
     let traces = write_traces(tmp.path());
     let bad = tmp.path().join("bad.json");
     std::fs::write(&bad, "{\"windows\": [{\"window\": 70}]}").expect("write");
-    let out = tmp.path().join("o");
-    let argv = [
-        "estimator-proc",
-        "kinds",
-        traces.to_str().expect("utf8"),
-        "--model",
-        bad.to_str().expect("utf8"),
-        "--out",
-        out.to_str().expect("utf8"),
-    ];
-    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
-    let e = estimator_proc::run(cli).expect_err("broken model");
-    let msg = format!("{e:#}");
-    assert!(
-        msg.contains("bad.json: not a kinds.json model") && !msg.contains('\n'),
-        "{msg}"
-    );
+    let msg = kinds_refused(tmp.path(), &traces, "--model", &bad);
+    assert!(msg.contains("bad.json: not a kinds.json model"), "{msg}");
 }
 
 #[test]
@@ -221,24 +226,11 @@ fn more_components_than_the_mixture_takes_are_refused_in_one_line() {
     let traces = write_kinds(tmp.path(), &three, 42);
     let config = tmp.path().join("c.toml");
     std::fs::write(&config, "[estimator]\ncomponents-per-kind = 6\n").expect("write");
-    let out = tmp.path().join("o");
-    let argv = [
-        "estimator-proc",
-        "kinds",
-        traces.to_str().expect("utf8"),
-        "--config",
-        config.to_str().expect("utf8"),
-        "--out",
-        out.to_str().expect("utf8"),
-    ];
-    let cli = <estimator_proc::Cli as clap::Parser>::try_parse_from(argv).expect("args");
-    let e = estimator_proc::run(cli).expect_err("18 components");
-    let msg = format!("{e:#}");
+    let msg = kinds_refused(tmp.path(), &traces, "--config", &config);
     assert!(
-        msg.contains("components-per-kind = 6 with 3 kinds asks for 18") && !msg.contains('\n'),
+        msg.contains("components-per-kind = 6 with 3 kinds asks for 18"),
         "{msg}"
     );
-    assert!(!out.exists(), "nothing written");
 }
 
 #[test]
