@@ -21,21 +21,47 @@ pub(super) fn section(cells: &[Evaluated], dt: f64) -> String {
     }
     let mut md = String::from(HEADING);
     md += DEFINITIONS;
-    md += "| ground | ticks | with an estimate % | right % | acted on % | switches per 100 m | crossings detected (mean delay) |\n|---|---:|---:|---:|---:|---:|---|\n";
+    md += &format!("| ground | ticks | {COLUMNS} |\n|---|---:|{COLUMN_RULES}\n");
     for e in cells {
         let Some(c) = &e.coverage else { continue };
         md += &format!(
-            "| {} | {} | {:.1} | {} | {:.1} | {:.1} | {} |\n",
+            "| {} | {} | {} |\n",
             e.area.name(),
             c.ticks,
-            100.0 * c.with_estimate,
-            c.right_pct(),
-            100.0 * c.acting_on_estimate,
-            c.switches_per_100m,
-            c.crossings_text(dt).unwrap_or_else(|| "-".into())
+            cells_of(c, dt)
         );
     }
     md
+}
+
+/// The coverage columns of every table here, and their alignment row.
+const COLUMNS: &str =
+    "with an estimate % | right % | acted on % | switches per 100 m | crossings detected";
+const COLUMN_RULES: &str = "---:|---:|---:|---:|---|";
+
+/// One run's [`COLUMNS`]: the crossings as detected of crossed, after the mean delay.
+fn cells_of(c: &Coverage, dt: f64) -> String {
+    format!(
+        "{:.1} | {} | {:.1} | {:.1} | {}",
+        100.0 * c.with_estimate,
+        c.right_pct(),
+        100.0 * c.acting_on_estimate,
+        c.switches_per_100m,
+        c.crossings_text(dt).unwrap_or_else(|| "-".into())
+    )
+}
+
+/// The seeds' [`COLUMNS`] as mean ± 95 % CI: the crossings as the share detected and the
+/// delay in seconds, per kind.
+fn cells_over_seeds(covs: &[&Coverage], dt: f64) -> String {
+    format!(
+        "{} | {} | {} | {} | {}",
+        over_seeds(covs, |c| Some(100.0 * c.with_estimate), 1),
+        over_seeds(covs, |c| c.estimate_right.map(|r| 100.0 * r), 1),
+        over_seeds(covs, |c| Some(100.0 * c.acting_on_estimate), 1),
+        over_seeds(covs, |c| Some(c.switches_per_100m), 1),
+        crossings_over_seeds(covs, dt)
+    )
 }
 
 /// `mean ± ci` of `f` over the seeds' records `xs` (those it has a value for), `-` when none
@@ -60,7 +86,7 @@ pub(super) fn seeds_section(runs: &[(Pipeline, Vec<Evaluated>)]) -> String {
     let dt = p.base.sim.decision_dt();
     let mut md = String::from(HEADING);
     md += DEFINITIONS;
-    md += "| ground | with an estimate % | right % | acted on % | switches per 100 m | detected % and delay s, per kind |\n|---|---:|---:|---:|---:|---|\n";
+    md += &format!("| ground | {COLUMNS} |\n|---|{COLUMN_RULES}\n");
     for (i, e) in first.iter().enumerate() {
         if e.coverage.is_none() {
             continue;
@@ -69,15 +95,7 @@ pub(super) fn seeds_section(runs: &[(Pipeline, Vec<Evaluated>)]) -> String {
             .iter()
             .filter_map(|(_, cells)| cells.get(i)?.coverage.as_ref())
             .collect();
-        md += &format!(
-            "| {} | {} | {} | {} | {} | {} |\n",
-            e.area.name(),
-            over_seeds(&covs, |c| Some(100.0 * c.with_estimate), 1),
-            over_seeds(&covs, |c| c.estimate_right.map(|r| 100.0 * r), 1),
-            over_seeds(&covs, |c| Some(100.0 * c.acting_on_estimate), 1),
-            over_seeds(&covs, |c| Some(c.switches_per_100m), 1),
-            crossings_over_seeds(&covs, dt)
-        );
+        md += &format!("| {} | {} |\n", e.area.name(), cells_over_seeds(&covs, dt));
     }
     md
 }
@@ -129,21 +147,18 @@ pub(super) fn tuning_section(t: &Tuning, p: &Pipeline) -> String {
     let dt = p.base.sim.decision_dt();
     let mut md = String::from(TUNING_HEADING);
     md += &tuning_definitions(p.base.reproduce.validation_episodes);
-    md += "| window, ticks | dwell, ticks | success % (episodes) | reach s, mean (std) | with an estimate % | right % | acted on % | switches per 100 m | crossings detected (mean delay) | chosen |\n|---:|---:|---:|---:|---:|---:|---:|---:|---|:---:|\n";
+    md += &format!(
+        "| window, ticks | dwell, ticks | success % (episodes) | reach s, mean (std) | {COLUMNS} | chosen |\n|---:|---:|---:|---:|{COLUMN_RULES}:---:|\n"
+    );
     for (k, x) in t.tried.iter().enumerate() {
-        let c = &x.coverage;
         md += &format!(
-            "| {} | {} | {:.1} ({}) | {} | {:.1} | {} | {:.1} | {:.1} | {} | {} |\n",
+            "| {} | {} | {:.1} ({}) | {} | {} | {} |\n",
             x.reading.window,
             x.reading.dwell,
             x.cell.success_pct(),
             x.cell.episodes,
             x.cell.reach(),
-            100.0 * c.with_estimate,
-            c.right_pct(),
-            100.0 * c.acting_on_estimate,
-            c.switches_per_100m,
-            c.crossings_text(dt).unwrap_or_else(|| "-".into()),
+            cells_of(&x.coverage, dt),
             if k == t.chosen { "**yes**" } else { "" }
         );
     }
@@ -165,7 +180,9 @@ pub(super) fn seeds_tuning(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
     let dt = p.base.sim.decision_dt();
     let mut md = String::from(TUNING_HEADING);
     md += &tuning_definitions(p.base.reproduce.validation_episodes);
-    md += "| window, ticks | dwell, ticks | success % | reach s (mean) | right % | acted on % | detected % and delay s, per kind | chosen in seeds |\n|---:|---:|---:|---:|---:|---:|---|---|\n";
+    md += &format!(
+        "| window, ticks | dwell, ticks | success % | reach s (mean) | {COLUMNS} | chosen in seeds |\n|---:|---:|---:|---:|{COLUMN_RULES}---|\n"
+    );
     for x in &first.tried {
         let tried: Vec<&Tried> = tunings
             .iter()
@@ -178,7 +195,7 @@ pub(super) fn seeds_tuning(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
             .map(|(seed, _)| seed.to_string())
             .collect();
         md += &format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} |\n",
             x.reading.window,
             x.reading.dwell,
             over_seeds(&tried, |y| Some(y.cell.success_pct()), 1),
@@ -187,9 +204,7 @@ pub(super) fn seeds_tuning(runs: &[(Pipeline, Vec<Evaluated>)]) -> anyhow::Resul
                 |y| (y.cell.successes > 0).then_some(y.cell.mean_reach_s),
                 2
             ),
-            over_seeds(&tried, |y| y.coverage.estimate_right.map(|r| 100.0 * r), 1),
-            over_seeds(&tried, |y| Some(100.0 * y.coverage.acting_on_estimate), 1),
-            crossings_over_seeds(&covs, dt),
+            cells_over_seeds(&covs, dt),
             if chosen.is_empty() {
                 "-".into()
             } else {
