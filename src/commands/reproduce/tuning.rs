@@ -97,8 +97,9 @@ pub(super) fn tuned_before(p: &Pipeline) -> anyhow::Result<Option<Tuning>> {
 }
 
 impl Pipeline {
-    /// How stage f's switching reads the ground: the config's own with one candidate, else
-    /// the best of them on the mixed validation courses, chosen once and kept.
+    /// How stage f's switching reads the ground: the config's own with one candidate (or when
+    /// stage f finished before any choice), else the best of them on the mixed validation
+    /// courses, chosen once and kept.
     pub(super) fn reading(
         &self,
         frozen: &BTreeMap<PolicySlot, PathBuf>,
@@ -109,6 +110,11 @@ impl Pipeline {
         }
         if let Some(tuning) = tuned_before(self)? {
             return Ok((tuning.reading(), Some(tuning)));
+        }
+        if self.done("f-eval") {
+            // Stage f drove before any reading was chosen: a choice now would not be the one
+            // its cells drove with.
+            return Ok((all[0], None));
         }
         let dir = self.stage_dir(STAGE);
         std::fs::create_dir_all(self.fresh(STAGE)?)?;
