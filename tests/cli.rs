@@ -58,7 +58,7 @@ fn unknown_key_is_refused_with_its_position() {
     assert_refused(
         "unknown",
         "[sim]\nwheels = 3\n",
-        "{path}:4:1: unknown field `wheels`, expected one of `envs`, `threads`, `acting`, `external`, `switch-dwell`, `leave-dwell`, `mean-actions`, `telemetry-notify-us`, `gravity`, `physics-dt`, `substeps`, `terrain`, `robot`, `observation`, `imu`, `task`",
+        "{path}:4:1: unknown field `wheels`, expected one of `envs`, `threads`, `acting`, `external`, `switch-dwell`, `leave-dwell`, `mean-actions`, `telemetry-notify-us`, `gravity`, `physics-dt`, `substeps`, `terrain`, `robot`, `observation`, `imu`, `task`, `randomize`",
     );
 }
 

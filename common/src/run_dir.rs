@@ -30,6 +30,8 @@ pub const SUMMARY_JSON: &str = "summary.json";
 pub const TELEMETRY_CSV: &str = "telemetry.csv";
 /// Every robot's thinned path, targets and endings (`common::track`), written by the sim.
 pub const TRACK_CSV: &str = "track.csv";
+/// The world every episode drew, when `sim.randomize` draws any (written by the sim).
+pub const WORLDS_CSV: &str = "worlds.csv";
 /// The map of the world with the robots' paths, drawn from [`TRACK_CSV`].
 pub const MAP_PNG: &str = "map.png";
 /// The directory of the processes' log files (see [`log_file`]).

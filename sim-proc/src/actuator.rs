@@ -47,6 +47,20 @@ impl Actuator {
         self.speeds
     }
 
+    /// Takes `cfg`'s latency and time constant for the commands to come (a world drawn by
+    /// `[sim.randomize]`), keeping the wheels' speeds: a longer delay line holds the speeds
+    /// the wheels already drive at, a shorter one drops its oldest commands.
+    pub fn retune(&mut self, cfg: &RobotConfig, dt: f64) {
+        let tuned = Self::new(cfg, dt);
+        self.gain = tuned.gain;
+        while self.in_flight.len() > cfg.command_latency {
+            self.in_flight.pop_front();
+        }
+        while self.in_flight.len() < cfg.command_latency {
+            self.in_flight.push_front(self.speeds);
+        }
+    }
+
     /// At rest again, nothing in flight: a robot just placed.
     pub fn reset(&mut self) {
         self.in_flight.iter_mut().for_each(|c| *c = [0.0; 2]);
@@ -57,6 +71,29 @@ impl Actuator {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn retuning_keeps_the_commands_in_flight_it_still_has_room_for() {
+        let mut a = Actuator::new(&robot(3, 0.0), 0.02);
+        for c in [1.0, 2.0, 3.0] {
+            a.apply([c, -c]);
+        }
+        a.retune(&robot(1, 0.0), 0.02);
+        assert_eq!(
+            a.apply([9.0, 9.0]),
+            [3.0, -3.0],
+            "the newest in flight arrives next"
+        );
+        a.retune(&robot(2, 0.0), 0.02);
+        assert_eq!(
+            a.apply([5.0, 5.0]),
+            [3.0, -3.0],
+            "the wheels hold their speed"
+        );
+        assert_eq!(a.apply([6.0, 6.0]), [9.0, 9.0]);
+        a.retune(&robot(0, 0.0), 0.02);
+        assert!(a.is_ideal());
+    }
 
     fn robot(latency: usize, tau: f64) -> RobotConfig {
         RobotConfig {

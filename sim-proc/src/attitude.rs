@@ -108,6 +108,13 @@ impl Sensing {
         self.last_velocity = body.linvel().as_dvec3();
     }
 
+    /// Moves the IMU into a world of gravity `g` m/s² whose sensors have `cfg`'s errors, drawn
+    /// again (`[sim.randomize]`); the filter's attitude and learned bias carry on.
+    pub fn retune(&mut self, cfg: &ImuConfig, g: f64) {
+        self.imu.redraw(cfg);
+        self.filter.g = g;
+    }
+
     /// Samples the IMU on `body` `dt` seconds after the last sample and updates the filter.
     pub fn sense(&mut self, body: &RigidBody, gravity: Vector, dt: f64) {
         let velocity = body.linvel().as_dvec3();

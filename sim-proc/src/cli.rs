@@ -70,6 +70,10 @@ pub struct Args {
     /// the run's map is drawn from).
     #[arg(long, requires = "run_id")]
     pub track: Option<PathBuf>,
+    /// In a run with `[sim.randomize]`: write the world every episode drew here (`worlds.csv`,
+    /// one row per env and episode).
+    #[arg(long, requires = "run_id")]
+    pub worlds: Option<PathBuf>,
     /// Override `run.seed`.
     #[arg(long)]
     pub seed: Option<u64>,
@@ -108,6 +112,7 @@ pub fn run(args: Args) -> anyhow::Result<Summary> {
             files: TickFiles {
                 telemetry: args.telemetry.as_deref(),
                 track: args.track.as_deref(),
+                worlds: args.worlds.as_deref(),
             },
         };
         crate::serve::serve(&cfg, run, &part)?;

@@ -3,6 +3,7 @@
 
 use crate::actuator::Actuator;
 use crate::attitude::Sensing;
+use crate::randomize::{Randomizer, WorldDraw};
 use crate::robot::{self, Robot, TERRAIN_GROUP};
 use crate::sinkage::Sinkage;
 use crate::task::{self, Ending, Episode};
@@ -111,6 +112,8 @@ pub struct Env {
     contact: (f32, CoefficientCombineRule),
     /// The wheels' sinkage, when the world has sand.
     sinkage: Option<Sinkage>,
+    /// Each episode's world and the observation noise, when `sim.randomize` draws any.
+    randomizer: Option<Randomizer>,
 }
 
 impl Env {
@@ -148,6 +151,7 @@ impl Env {
                 .then(|| Sensing::new(&cfg.imu, cfg.gravity, seed, id)),
             contact: floor_contact(cfg, AreaKind::Flat),
             sinkage: None,
+            randomizer: Randomizer::new(cfg, seed, id),
         };
         env.placed();
         env.new_episode();
@@ -171,6 +175,30 @@ impl Env {
         let rng = leg.as_mut().unwrap_or(&mut self.rng);
         let target = task::draw_target(&self.cfg.task, &self.rect, start, rng);
         self.episode = Episode::new(&self.cfg.task, start, target);
+        self.randomize();
+    }
+
+    /// Draws the new episode's world (`sim.randomize`) and gives it to the robot where it
+    /// stands: its body, motors and sensors, gravity and the ground's friction.
+    fn randomize(&mut self) {
+        let Some(r) = self.randomizer.as_mut() else {
+            return;
+        };
+        self.cfg = r.draw(self.episode_index);
+        let w = r.world;
+        self.world.gravity = Vector::Y * -(w.gravity as f32);
+        self.robot
+            .refit(&mut self.world, &self.cfg.robot, w.com_offset, w.payload);
+        self.actuator.retune(&self.cfg.robot, self.cfg.physics_dt);
+        if let Some(s) = self.sensing.as_mut() {
+            s.retune(&self.cfg.imu, w.gravity);
+        }
+        self.set_contact(self.contact_of(self.ground()));
+    }
+
+    /// The world episode `index` drew (or will draw), when `sim.randomize` draws any.
+    pub fn world_of(&self, index: u64) -> Option<WorldDraw> {
+        self.randomizer.as_ref().map(|r| r.world_of(index).0)
     }
 
     /// The kind of ground under the robot: the env's area, or on the mixed course whichever
@@ -235,10 +263,23 @@ impl Env {
     /// its axle. An unchanged contact is left alone: touching the collider would reset its
     /// contacts' solver state.
     fn contact_ground(&mut self) {
-        if self.area != AreaKind::Mixed {
-            return;
+        if self.area == AreaKind::Mixed {
+            self.set_contact(self.contact_of(self.ground()));
         }
-        let contact = floor_contact(&self.cfg, self.ground());
+    }
+
+    /// The floor's contact on ground of `kind` in this episode's world: [`floor_contact`],
+    /// its friction times the kind's drawn factor when `sim.randomize` draws one.
+    fn contact_of(&self, kind: AreaKind) -> (f32, CoefficientCombineRule) {
+        let (mu, rule) = floor_contact(&self.cfg, kind);
+        match &self.randomizer {
+            Some(r) => ((f64::from(mu) * r.world.friction_of(kind)) as f32, rule),
+            None => (mu, rule),
+        }
+    }
+
+    /// Gives the floor `contact`, when it is not already the floor's.
+    fn set_contact(&mut self, contact: (f32, CoefficientCombineRule)) {
         if contact == self.contact {
             return;
         }
@@ -323,8 +364,12 @@ impl Env {
             (ty - p.pos[1]) as f32,
             (tz - p.pos[2]) as f32,
         );
-        let local = p.rot.inverse() * world_rel;
-        let [ex, ey, ez] = self.observed_euler();
+        let mut local = p.rot.inverse() * world_rel;
+        let [mut ex, mut ey, mut ez] = self.observed_euler();
+        if let Some(n) = self.randomizer.as_ref().and_then(|r| r.noise(self.tick)) {
+            local += Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32);
+            (ex, ey, ez) = (ex + n[3], ey + n[4], ez + n[5]);
+        }
         [
             local.x,
             local.y,
@@ -367,6 +412,15 @@ impl Env {
         stepped.unwrap_or(false)
     }
 
+    /// Pushes the chassis when `sim.randomize` has a push due at this step of the episode.
+    fn push(&mut self) {
+        let steps = self.episode.steps;
+        if let Some([x, z]) = self.randomizer.as_mut().and_then(|r| r.push(steps)) {
+            let impulse = Vector::new(x as f32, 0.0, z as f32);
+            self.world.bodies[self.robot.chassis].apply_impulse(impulse, true);
+        }
+    }
+
     /// One decision step: clip the action (SPEC S2), run the physics substeps, apply the
     /// episode rules, and start the next episode (respawning if the rules say so).
     pub fn step(&mut self, action: [f32; 2]) -> StepInfo {
@@ -381,6 +435,7 @@ impl Env {
         });
         self.contact_ground();
         self.sink();
+        self.push();
         let healthy = self.physics_substeps();
         self.tick += 1;
         let p = self.pose();

@@ -93,6 +93,13 @@ impl Imu {
         ImuSample { gyro, accel }
     }
 
+    /// Draws the turn-on biases and scale errors of `cfg`'s sensors again from the IMU's own
+    /// stream: the sensor of a world drawn by `[sim.randomize]`.
+    pub fn redraw(&mut self, cfg: &ImuConfig) {
+        self.gyro = Sensor::new(&cfg.gyro, &mut self.rng);
+        self.accel = Sensor::new(&cfg.accel, &mut self.rng);
+    }
+
     /// The gyroscope's current bias, rad/s (for tests and diagnostics).
     pub fn gyro_bias(&self) -> DVec3 {
         self.gyro.bias

@@ -17,6 +17,7 @@ pub mod fleet;
 pub mod imu;
 pub mod outputs;
 mod pool;
+pub mod randomize;
 pub mod robot;
 pub mod serve;
 pub mod sinkage;
@@ -27,6 +28,7 @@ pub mod telemetry_csv;
 pub mod terrain;
 pub mod track;
 mod waiting;
+pub mod worlds_csv;
 
 pub use cli::{Args, run};
 pub use env::{Env, SharedTerrain, StepInfo};

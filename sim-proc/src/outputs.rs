@@ -1,11 +1,12 @@
 //! What the sim in a run publishes and records every tick, whoever acts (a policy or a gym
-//! client): the `telemetry` service, the telemetry CSV and the track; and the estimator's
-//! classes it reads back from `terrain`.
+//! client): the `telemetry` service, the telemetry CSV, the track and the drawn worlds; and
+//! the estimator's classes it reads back from `terrain`.
 
 use crate::Fleet;
 use crate::driver::Driver;
 use crate::telemetry_csv::{TelemetryCsv, telemetry_row};
 use crate::track::SimTrack;
+use crate::worlds_csv::WorldsCsv;
 use common::Config;
 use common::config::{Acting, PolicySlot};
 use common::ipc::{self, Bus, Receiver, Sender};
@@ -14,11 +15,12 @@ use std::path::Path;
 use std::time::Duration;
 
 /// The files a sim in a run writes as it steps, each when asked for: the telemetry CSV
-/// (`--telemetry`) and the track (`--track`).
+/// (`--telemetry`), the track (`--track`) and the drawn worlds (`--worlds`).
 #[derive(Debug, Clone, Copy, Default)]
 pub struct TickFiles<'a> {
     pub telemetry: Option<&'a Path>,
     pub track: Option<&'a Path>,
+    pub worlds: Option<&'a Path>,
 }
 
 /// The sim's per-tick outputs: its services, its files and the estimator's classes.
@@ -27,6 +29,7 @@ pub struct TickOutputs {
     terrain_rx: Receiver<TerrainEstimate, TerrainHeader>,
     csv: Option<TelemetryCsv>,
     track: Option<SimTrack>,
+    worlds: Option<WorldsCsv>,
     /// The estimator's newest class per env (`CLASS_UNKNOWN` before its first estimate).
     pub classes: Vec<u8>,
     /// Whether the sim's policies act (not a gym client), so the CSV names their slots.
@@ -49,6 +52,7 @@ impl TickOutputs {
             terrain_rx: bus.receiver(&ipc::TERRAIN, None)?,
             csv: files.telemetry.map(TelemetryCsv::append).transpose()?,
             track: files.track.map(|p| SimTrack::append(p, n)).transpose()?,
+            worlds: files.worlds.map(|p| WorldsCsv::append(p, n)).transpose()?,
             classes: vec![wire::CLASS_UNKNOWN; n],
             policies_act: cfg.sim.acting != Acting::External,
             acted: vec![wire::CLASS_UNKNOWN; n],
@@ -78,6 +82,9 @@ impl TickOutputs {
             for e in est.payload().iter().filter(|e| (e.env as usize) < n) {
                 self.classes[e.env as usize] = e.class;
             }
+        }
+        if let Some(w) = self.worlds.as_mut() {
+            w.see(&fleet.envs);
         }
         driver.env_ticks(fleet, &mut self.ticks);
         if let Some(t) = self.track.as_mut() {
@@ -112,6 +119,9 @@ impl TickOutputs {
         self.tele_tx.flush()?;
         if let Some(t) = self.track.as_mut() {
             t.flush();
+        }
+        if let Some(w) = self.worlds.as_mut() {
+            w.flush();
         }
         Ok(())
     }

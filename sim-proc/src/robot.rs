@@ -41,6 +41,10 @@ pub fn caster_offset(cfg: &RobotConfig) -> [f64; 3] {
 #[derive(Debug, Clone, Copy)]
 pub struct Robot {
     pub chassis: RigidBodyHandle,
+    /// The chassis box's collider.
+    body: ColliderHandle,
+    /// The skid ball's collider.
+    caster: ColliderHandle,
     /// Wheel colliders, left (+X) then right (−X).
     wheels: [ColliderHandle; 2],
     /// The wheels' motorised joints, same order (`joint` model only).
@@ -63,30 +67,29 @@ pub fn build(world: &mut PhysicsWorld, cfg: &RobotConfig, pose: Pose) -> Robot {
         .translation(v3(chassis_offset(cfg)))
         .mass(cfg.chassis_mass as f32)
         .collision_groups(robot_groups());
-    world.insert_collider(body, Some(chassis));
+    let body = world.insert_collider(body, Some(chassis));
     let caster = ColliderBuilder::ball(cfg.caster_radius as f32)
         .translation(v3(caster_offset(cfg)))
         .mass(0.0)
         .friction(cfg.caster_friction as f32)
         .friction_combine_rule(CoefficientCombineRule::Min)
         .collision_groups(robot_groups());
-    world.insert_collider(caster, Some(chassis));
+    let caster = world.insert_collider(caster, Some(chassis));
 
     let half_track = 0.5 * cfg.track_width;
     let mut joints = [ImpulseJointHandle::invalid(); 2];
     let wheels = [0, 1].map(|side| {
         let x = if side == 0 { half_track } else { -half_track };
         let anchor = v3([x, 0.0, 0.0]);
-        let r = cfg.wheel_radius as f32;
-        let shape = match cfg.wheel_shape {
-            WheelShape::Ball => ColliderBuilder::ball(r),
+        let mut shape = ColliderBuilder::new(wheel_shape(cfg));
+        if cfg.wheel_shape == WheelShape::Cylinder {
             // parry's cylinders stand on Y: turn the axis onto X.
-            WheelShape::Cylinder => ColliderBuilder::cylinder(0.5 * cfg.wheel_width as f32, r)
-                .rotation(Vector::new(0.0, 0.0, std::f32::consts::FRAC_PI_2)),
+            shape = shape.rotation(Vector::new(0.0, 0.0, std::f32::consts::FRAC_PI_2));
         }
-        .mass(cfg.wheel_mass as f32)
-        .friction(cfg.wheel_friction as f32)
-        .collision_groups(robot_groups());
+        let shape = shape
+            .mass(cfg.wheel_mass as f32)
+            .friction(cfg.wheel_friction as f32)
+            .collision_groups(robot_groups());
         match cfg.wheel_model {
             WheelModel::Contact => world.insert_collider(
                 shape
@@ -112,12 +115,57 @@ pub fn build(world: &mut PhysicsWorld, cfg: &RobotConfig, pose: Pose) -> Robot {
     });
     Robot {
         chassis,
+        body,
+        caster,
         wheels,
         joints: (cfg.wheel_model == WheelModel::Joint).then_some(joints),
     }
 }
 
+/// A wheel's shape (a cylinder standing on Y, as parry makes it).
+fn wheel_shape(cfg: &RobotConfig) -> SharedShape {
+    let r = cfg.wheel_radius as f32;
+    match cfg.wheel_shape {
+        WheelShape::Ball => SharedShape::ball(r),
+        WheelShape::Cylinder => SharedShape::cylinder(0.5 * cfg.wheel_width as f32, r),
+    }
+}
+
 impl Robot {
+    /// Gives the built robot `cfg`'s chassis mass, wheel radius (the skid following, level
+    /// with the wheels) and torque limit, with its
+    /// chassis's centre of mass moved by `com_offset` (m, chassis frame) and a point mass of
+    /// `payload` kg on top of the chassis: a world drawn by `[sim.randomize]`.
+    pub fn refit(
+        &self,
+        world: &mut PhysicsWorld,
+        cfg: &RobotConfig,
+        com_offset: [f64; 3],
+        payload: f64,
+    ) {
+        let he = cfg.chassis_half_extents;
+        let volume = 8.0 * he[0] * he[1] * he[2];
+        let mut mass = MassProperties::from_cuboid((cfg.chassis_mass / volume) as f32, v3(he));
+        mass.local_com = v3(com_offset);
+        world.colliders[self.body].set_mass_properties(mass);
+        let [x, y, z] = chassis_offset(cfg);
+        let top = v3([x, y + he[1], z]);
+        world.bodies[self.chassis].set_additional_mass_properties(
+            MassProperties::new(top, payload as f32, Vector::ZERO),
+            true,
+        );
+        for wheel in self.wheels {
+            world.colliders[wheel].set_shape(wheel_shape(cfg));
+        }
+        world.colliders[self.caster].set_translation_wrt_parent(v3(caster_offset(cfg)));
+        for handle in self.joints.iter().flatten() {
+            if let Some(j) = world.impulse_joints.get_mut(*handle, false) {
+                j.data
+                    .set_motor_max_force(JointAxis::AngX, cfg.motor_max_torque as f32);
+            }
+        }
+    }
+
     /// World positions of the two wheel centres (left, right).
     pub fn wheel_centres(&self, world: &PhysicsWorld) -> [Vector; 2] {
         self.wheels.map(|h| world.colliders[h].translation())

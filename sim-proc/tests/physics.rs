@@ -102,6 +102,128 @@ fn a_dropped_robot_falls_as_half_g_t_squared_on_the_moon_and_on_earth() {
     }
 }
 
+/// The forward acceleration (m/s²) of a robot on a plane whose wheel motors push at their
+/// torque limit `torque` (commanded far beyond what they reach), with the chassis refitted to
+/// `chassis_mass` and a `payload` on top, as a world drawn by `sim.randomize` refits it. The
+/// skid is frictionless, so the wheels' push is the only horizontal force.
+fn torque_limited_acceleration(torque: f64, chassis_mass: f64, payload: f64) -> f64 {
+    let (mut cfg, terrain) = plane(WheelModel::Joint);
+    cfg.physics_dt = 1.0 / 120.0;
+    cfg.robot.caster_friction = 0.0;
+    cfg.robot.motor_max_torque = torque;
+    let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0, AreaKind::Flat);
+    cfg.robot.chassis_mass = chassis_mass;
+    robot.refit(&mut world, &cfg.robot, [0.0; 3], payload);
+    let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
+    for _ in 0..120 {
+        world.step_with_events(&held, &());
+    }
+    let drive = robot.command(&mut world, &cfg.robot, [100.0, 100.0]);
+    let mut v = Vec::new();
+    for _ in 0..48 {
+        world.step_with_events(&drive, &());
+        v.push(f64::from(world.bodies[robot.chassis].linvel().z));
+    }
+    // From 0.1 s to 0.4 s after the command: past the first contact transients.
+    (v[47] - v[11]) / (36.0 * cfg.physics_dt)
+}
+
+#[test]
+fn a_heavier_robot_accelerates_less_under_the_same_torque_as_f_equals_m_a() {
+    let r = SimConfig::default().robot;
+    let torque = 0.005;
+    // Two wheels push 2τ/r; the wheels' own rolling (a solid ball's I = 2/5·m·r²) adds
+    // I/r² each to the mass the push accelerates.
+    let force = 2.0 * torque / r.wheel_radius;
+    let wheels = 2.0 * (r.wheel_mass + 0.4 * r.wheel_mass);
+    for (chassis, payload) in [(0.3, 0.0), (0.6, 0.0), (0.3, 0.3)] {
+        let a = torque_limited_acceleration(torque, chassis, payload);
+        let want = force / (chassis + payload + wheels);
+        assert!(
+            (a / want - 1.0).abs() < 0.1,
+            "chassis {chassis} kg + payload {payload} kg: {a:.3} m/s², F/m = {want:.3} m/s²"
+        );
+    }
+    let light = torque_limited_acceleration(torque, 0.3, 0.0);
+    let heavy = torque_limited_acceleration(torque, 0.6, 0.0);
+    assert!(
+        heavy < 0.6 * light,
+        "twice the chassis: {heavy:.3} against {light:.3} m/s²"
+    );
+}
+
+#[test]
+fn a_push_of_impulse_j_changes_the_robots_velocity_by_j_over_m() {
+    let (mut cfg, terrain) = plane(WheelModel::Joint);
+    cfg.physics_dt = 1.0 / 240.0;
+    let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0, AreaKind::Flat);
+    for (_, body) in world.bodies.iter_mut() {
+        body.set_translation(body.translation() + glam::Vec3::Y * 2.0, true);
+        body.set_linvel(glam::Vec3::ZERO, true);
+    }
+    let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
+    let r = &cfg.robot;
+    let total = r.chassis_mass + 2.0 * r.wheel_mass;
+    let j = glam::Vec3::new(0.12, 0.0, -0.05);
+    world.bodies[robot.chassis].apply_impulse(j, true);
+    let chassis_now = world.bodies[robot.chassis].linvel();
+    assert!((chassis_now - j / r.chassis_mass as f32).length() < 1e-5);
+    // Through the joints the whole robot takes it: its centre of mass moves at J/M, in the
+    // air (gravity pulls along y only).
+    for _ in 0..24 {
+        world.step_with_events(&held, &());
+    }
+    let momentum: glam::Vec3 = world
+        .bodies
+        .iter()
+        .map(|(_, b)| b.linvel() * b.mass())
+        .sum();
+    let v = glam::Vec3::new(momentum.x, 0.0, momentum.z) / total as f32;
+    let want = j / total as f32;
+    assert!(
+        (v - want).length() < 1e-3 * want.length(),
+        "{v} against J/M = {want}"
+    );
+}
+
+/// Where the robot of an env standing on a plane is after each decision step: pushed every
+/// second by `[sim.randomize]` when `pushed`.
+fn positions_at_rest(pushed: bool) -> Vec<[f64; 3]> {
+    let (mut cfg, terrain) = plane(WheelModel::Joint);
+    if pushed {
+        cfg.randomize.push_impulse = [0.3, 0.3];
+        cfg.randomize.push_interval = 1.0;
+    }
+    let mut env = Env::new(0, &cfg, &terrain, 5);
+    (0..25)
+        .map(|_| {
+            env.step([0.0, 0.0]);
+            env.pose().pos
+        })
+        .collect()
+}
+
+#[test]
+fn a_randomized_world_pushes_the_robot_every_push_interval() {
+    let (still, pushed) = (positions_at_rest(false), positions_at_rest(true));
+    let moved = |a: [f64; 3], b: [f64; 3]| (a[0] - b[0]).hypot(a[2] - b[2]);
+    // 1 s at 0.1 s per decision step: the push comes at the episode's step 10, the 11th.
+    // Before it the two differ only by the refitted chassis's rounding.
+    for (a, b) in still[..10].iter().zip(&pushed[..10]) {
+        assert!(
+            moved(*a, *b) < 1e-5,
+            "no push before the first second: {a:?} {b:?}"
+        );
+    }
+    // After it the pushed robot is elsewhere: 0.3 N·s on 0.36 kg is 0.8 m/s, braked by the
+    // held wheels within a few centimetres.
+    let apart = moved(pushed[24], still[24]);
+    assert!(
+        apart > 0.01,
+        "pushed robot {apart:.4} m from the unpushed one"
+    );
+}
+
 /// How far the robot of an env on a plane drives in each decision step of one physics step:
 /// 5 s at rest, then both wheels commanded at 2 rad/s, with `latency` steps of delay.
 fn steps_with_latency(latency: usize) -> Vec<f64> {

@@ -249,6 +249,12 @@ impl<'a> Run<'a> {
             "--track".into(),
             self.dir.join(run_dir::TRACK_CSV).display().to_string(),
         ]);
+        if cfg.sim.randomize.is_active() {
+            sim_args.extend([
+                "--worlds".into(),
+                self.dir.join(run_dir::WORLDS_CSV).display().to_string(),
+            ]);
+        }
         if cfg.run.telemetry_csv {
             sim_args.extend([
                 "--telemetry".into(),

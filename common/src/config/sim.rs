@@ -5,7 +5,7 @@ use super::range::invalid;
 use super::setting::{choices, count, flag, real, settings};
 use super::{
     Acting, AreaKind, AttitudeSource, ConfigError, ExternalConfig, ImuConfig, PolicySlot,
-    RobotConfig, TaskConfig, TerrainConfig,
+    RandomizeConfig, RobotConfig, TaskConfig, TerrainConfig,
 };
 use std::collections::BTreeMap;
 
@@ -86,6 +86,8 @@ settings! {
         pub imu: ImuConfig = ImuConfig::default();
         /// The episode and reward rules.
         pub task: TaskConfig = TaskConfig::default();
+        /// Domain randomization: each episode's world drawn from ranges (off by default).
+        pub randomize: RandomizeConfig = RandomizeConfig::default();
     }
 }
 
@@ -191,6 +193,7 @@ impl SimConfig {
         self.terrain.validate()?;
         self.robot.validate()?;
         self.task.validate()?;
+        self.randomize.validate()?;
         Ok(())
     }
 }
