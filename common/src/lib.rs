@@ -4,6 +4,8 @@
 //!
 //! Depends on neither rapier nor burn, so every process can link it cheaply.
 
+#[cfg(feature = "plot")]
+pub mod bars;
 pub mod cli;
 pub mod clock;
 pub mod config;

@@ -5,7 +5,7 @@
 //! square of [`Map::scale`] pixels, so the image has the terrain's proportions.
 
 use crate::config::{AreaKind, Rect};
-use crate::plot::{FONT, register_fonts};
+use crate::plot::{FONT, register_fonts, write_png};
 use crate::terrain::Terrain;
 use crate::track::{Mark, TrackPoint};
 use plotters::prelude::*;
@@ -222,32 +222,6 @@ fn legend(root: &Area, map: &Map, track: &[TrackPoint]) -> Result<(), Box<dyn st
         y += 18;
     }
     Ok(())
-}
-
-/// Writes the PNG beside `path` and renames it into place, so a reader never sees half a
-/// map; a failed write (a full disk) leaves no partial file taking space.
-fn write_png(path: &Path, size: (u32, u32), rgb: &[u8]) -> std::io::Result<()> {
-    let mut tmp = path.as_os_str().to_owned();
-    tmp.push(".tmp");
-    let tmp = std::path::PathBuf::from(tmp);
-    let written = encode_png(size, rgb)
-        .and_then(|png| std::fs::write(&tmp, png))
-        .and_then(|()| std::fs::rename(&tmp, path));
-    if written.is_err() {
-        let _ = std::fs::remove_file(&tmp);
-    }
-    written
-}
-
-fn encode_png((w, h): (u32, u32), rgb: &[u8]) -> std::io::Result<Vec<u8>> {
-    let mut out = Vec::new();
-    let mut enc = png::Encoder::new(&mut out, w, h);
-    enc.set_color(png::ColorType::Rgb);
-    enc.set_depth(png::BitDepth::Eight);
-    let mut w = enc.write_header().map_err(std::io::Error::other)?;
-    w.write_image_data(rgb).map_err(std::io::Error::other)?;
-    w.finish().map_err(std::io::Error::other)?;
-    Ok(out)
 }
 
 #[cfg(test)]

@@ -2,6 +2,7 @@
 //! fresh machine, so the figures use the DejaVu Sans bundled in the `dejavu` crate.
 
 use plotters::style::{FontStyle, register_font};
+use std::path::Path;
 use std::sync::OnceLock;
 
 /// The family name the figures use; [`register_fonts`] maps it to DejaVu Sans.
@@ -17,4 +18,31 @@ pub fn register_fonts() -> Result<(), &'static str> {
     });
     ok.then_some(())
         .ok_or("the bundled DejaVu font could not be parsed")
+}
+
+/// Writes the RGB picture of `size` pixels as a PNG beside `path` and renames it into place,
+/// so a reader never sees half a figure; a failed write (a full disk) leaves no partial file
+/// taking space.
+pub fn write_png(path: &Path, size: (u32, u32), rgb: &[u8]) -> std::io::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = std::path::PathBuf::from(tmp);
+    let written = encode_png(size, rgb)
+        .and_then(|png| std::fs::write(&tmp, png))
+        .and_then(|()| std::fs::rename(&tmp, path));
+    if written.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    written
+}
+
+fn encode_png((w, h): (u32, u32), rgb: &[u8]) -> std::io::Result<Vec<u8>> {
+    let mut out = Vec::new();
+    let mut enc = png::Encoder::new(&mut out, w, h);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    let mut w = enc.write_header().map_err(std::io::Error::other)?;
+    w.write_image_data(rgb).map_err(std::io::Error::other)?;
+    w.finish().map_err(std::io::Error::other)?;
+    Ok(out)
 }

@@ -4,6 +4,7 @@ mod analyze;
 mod bench;
 mod check_config;
 mod clean;
+mod evaluate;
 mod map;
 mod reproduce;
 mod run;
@@ -30,6 +31,9 @@ pub enum Command {
     Join(run::JoinArgs),
     /// The paper's experiment end to end, stage by stage (resumable): models, Table 3, Table 1.
     Reproduce(reproduce::ReproduceArgs),
+    /// Policies on named worlds (`--worlds`: nominal, slippery, heavy, latency, …): success
+    /// and reach time per world and policy on the same seeded courses, a table and a chart.
+    Evaluate(evaluate::EvaluateArgs),
     /// Replace a running run's learner (new hyperparameters or checkpoint); the sim keeps going.
     SwapLearner(swap::SwapArgs),
     /// The paper's terrain analysis (SPEC S7) on recorded telemetry: Table 3 and Figs. 5–8.
@@ -64,6 +68,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Run(args) => run::run(args),
         Command::Join(args) => run::join(args),
         Command::Reproduce(args) => reproduce::reproduce(args),
+        Command::Evaluate(args) => evaluate::evaluate(args),
         Command::SwapLearner(args) => swap::swap_learner_command(args),
         Command::Analyze(args) => analyze::analyze(args),
         Command::CheckConfig(args) => check_config::check_config(&args),

@@ -134,6 +134,26 @@ impl Config {
         parse_toml(text, path)
     }
 
+    /// This config with `top` laid over it as a config that `extends` it would be (a section
+    /// merges key by key, a field replaces), then checked; `path` labels errors.
+    pub fn overlaid(&self, top: toml::Table, path: &Path) -> Result<Self, ConfigError> {
+        let parse = |message: String| ConfigError::Parse {
+            path: path.to_path_buf(),
+            line: 1,
+            column: 1,
+            message: message.replace('\n', " "),
+        };
+        let mut base = toml::Table::try_from(self).map_err(|e| parse(e.to_string()))?;
+        refuse_replaced_keys(&top)?;
+        let fields: HashSet<String> = reference::rows().into_iter().map(|r| r.key).collect();
+        overlay(&mut base, top, "", &fields);
+        let cfg: Self = toml::Value::Table(base)
+            .try_into()
+            .map_err(|e: toml::de::Error| parse(e.message().to_owned()))?;
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
     /// The config as TOML, for the run directory.
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).unwrap_or_else(|e| format!("# cannot serialise config: {e}\n"))

@@ -42,40 +42,67 @@ pub(super) struct Courses {
 /// models reach the target in about 40 (3.5-4 s at 0.1 s per tick).
 const EPISODE_TICKS_GUESS: u64 = 50;
 
-impl Pipeline {
-    /// `sim-proc` alone with a policy file: `steps` decision steps per env, telemetry to `csv`.
-    pub(super) fn drive(
-        &self,
-        cfg: &Config,
-        weights: &Path,
-        steps: u64,
-        csv: &Path,
-    ) -> anyhow::Result<()> {
-        let dir = csv.parent().unwrap_or(Path::new("."));
-        let cfg_path = csv.with_extension("toml");
-        std::fs::write(&cfg_path, cfg.to_toml())
-            .with_context(|| format!("cannot write {}", cfg_path.display()))?;
-        let run = Command::new(runtime::locate("sim-proc")?)
-            .arg("--config")
-            .arg(&cfg_path)
-            .args(["--controller", "policy", "--weights"])
-            .arg(weights)
-            .args(["--steps", &steps.to_string(), "--telemetry"])
-            .arg(csv)
-            .current_dir(dir)
-            .output()?;
-        let log = csv.with_extension("log");
-        std::fs::write(&log, [run.stdout, run.stderr].concat())
-            .with_context(|| format!("cannot write {}", log.display()))?;
-        anyhow::ensure!(
-            run.status.success(),
-            "sim-proc on {} failed; see {}",
-            weights.display(),
-            log.display()
-        );
-        Ok(())
-    }
+/// `sim-proc` alone with a policy file: `steps` decision steps per env, telemetry to `csv`
+/// (its config beside it, `.toml`, and its output, `.log`).
+pub(crate) fn drive(cfg: &Config, weights: &Path, steps: u64, csv: &Path) -> anyhow::Result<()> {
+    let dir = csv.parent().unwrap_or(Path::new("."));
+    let cfg_path = csv.with_extension("toml");
+    std::fs::write(&cfg_path, cfg.to_toml())
+        .with_context(|| format!("cannot write {}", cfg_path.display()))?;
+    let run = Command::new(runtime::locate("sim-proc")?)
+        .arg("--config")
+        .arg(&cfg_path)
+        .args(["--controller", "policy", "--weights"])
+        .arg(weights)
+        .args(["--steps", &steps.to_string(), "--telemetry"])
+        .arg(csv)
+        .current_dir(dir)
+        .output()?;
+    let log = csv.with_extension("log");
+    std::fs::write(&log, [run.stdout, run.stderr].concat())
+        .with_context(|| format!("cannot write {}", log.display()))?;
+    anyhow::ensure!(
+        run.status.success(),
+        "sim-proc on {} failed; see {}",
+        weights.display(),
+        log.display()
+    );
+    Ok(())
+}
 
+/// Drives `cfg`'s courses until `episodes` have ended: runs `run_part` (the config and the
+/// part's index; returns its telemetry CSV) with seeds `cfg.run.seed`, +1, … Every model
+/// driven so runs the same seeds on the same courses, so their legs pair up.
+pub(crate) fn drive_courses(
+    cfg: &Config,
+    episodes: u64,
+    mut run_part: impl FnMut(&Config, usize) -> anyhow::Result<PathBuf>,
+) -> anyhow::Result<Legs> {
+    let mut cfg = cfg.clone();
+    let mut legs = Legs::new();
+    let dt = cfg.sim.decision_dt();
+    while Cell::of(&legs, dt).episodes < episodes {
+        let csv = run_part(&cfg, legs.len())?;
+        let part = legs_in(&csv)?;
+        anyhow::ensure!(
+            part.iter().any(|env| !env.is_empty()),
+            "{} holds no finished episode",
+            csv.display()
+        );
+        legs.push(part);
+        cfg.run.seed = cfg.run.seed.wrapping_add(1);
+    }
+    Ok(legs)
+}
+
+/// Ticks per env of one course run of `cfg` for `episodes` over `envs` envs: enough for the
+/// episodes at `EPISODE_TICKS_GUESS` ticks each, and for every env to end one episode
+/// however long it lasts. A cell short of its episodes runs again with the next seed.
+pub(crate) fn course_ticks(cfg: &Config, episodes: u64, envs: u64) -> u64 {
+    (episodes.div_ceil(envs) * EPISODE_TICKS_GUESS).max(cfg.sim.task.longest_episode_ticks() + 1)
+}
+
+impl Pipeline {
     /// Evaluates `model` in `area` on `courses`: runs `run_part` (the config, the part's
     /// name; returns its telemetry CSV) with seeds `courses.seed`, +1, … until the cell has
     /// its episodes. Every model runs the same seeds on the same courses, so their legs pair up.
@@ -88,21 +115,13 @@ impl Pipeline {
     ) -> anyhow::Result<Evaluated> {
         let mut cfg = self.eval_in(area);
         cfg.run.seed = courses.seed;
-        let mut legs = Legs::new();
-        let dt = cfg.sim.decision_dt();
-        while Cell::of(&legs, dt).episodes < courses.episodes {
-            let name = format!("{}-{}-{}", model.to_lowercase(), area.name(), legs.len());
-            let csv = run_part(&cfg, &name)?;
-            let part = legs_in(&csv)?;
-            anyhow::ensure!(
-                part.iter().any(|env| !env.is_empty()),
-                "{} holds no finished episode",
-                csv.display()
-            );
-            legs.push(part);
-            cfg.run.seed = cfg.run.seed.wrapping_add(1);
-        }
-        let cell = Cell::of(&legs, dt);
+        let legs = drive_courses(&cfg, courses.episodes, |cfg, part| {
+            run_part(
+                cfg,
+                &format!("{}-{}-{part}", model.to_lowercase(), area.name()),
+            )
+        })?;
+        let cell = Cell::of(&legs, cfg.sim.decision_dt());
         self.say(&format!(
             "{}: {model} on {} ground: {:.1}% of {} episodes, reach s {}",
             courses.stage,
@@ -130,7 +149,7 @@ impl Pipeline {
     ) -> anyhow::Result<Evaluated> {
         self.evaluate(model, area, courses, |cfg, part| {
             let csv = dir.join(format!("{part}.csv"));
-            self.drive(cfg, weights, courses.ticks, &csv)?;
+            drive(cfg, weights, courses.ticks, &csv)?;
             Ok(csv)
         })
     }
@@ -197,17 +216,14 @@ impl Pipeline {
         c
     }
 
-    /// Courses of `episodes` per cell from seed `seed` on. Ticks per env of one run: enough
-    /// for the episodes at `EPISODE_TICKS_GUESS` ticks each, and for every env to end one
-    /// episode however long it lasts. A cell short of its episodes runs again with the next seed.
+    /// Courses of `episodes` per cell from seed `seed` on ([`course_ticks`] per run).
     fn courses(&self, stage: &'static str, seed: u64, episodes: u64) -> Courses {
         let envs = self.base.reproduce.eval_envs as u64;
         Courses {
             stage,
             seed,
             episodes,
-            ticks: (episodes.div_ceil(envs) * EPISODE_TICKS_GUESS)
-                .max(self.base.sim.task.longest_episode_ticks() + 1),
+            ticks: course_ticks(&self.base, episodes, envs),
         }
     }
 

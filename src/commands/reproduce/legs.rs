@@ -8,21 +8,21 @@ use std::path::Path;
 /// Each leg an evaluation drove, by run (part), env and leg: its length in decision steps
 /// when the robot reached the target, `None` when the leg failed. Stage f drives every model
 /// on the same seeded courses (`EpisodeStart::Course`), so two models' legs pair up by index.
-pub(super) type Legs = Vec<Vec<Vec<Option<u32>>>>;
+pub(crate) type Legs = Vec<Vec<Vec<Option<u32>>>>;
 
 /// One evaluation cell: a model in an area.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
-pub(super) struct Cell {
-    pub(super) episodes: u64,
-    pub(super) successes: u64,
+pub(crate) struct Cell {
+    pub(crate) episodes: u64,
+    pub(crate) successes: u64,
     /// Reach time of successful episodes, seconds.
-    pub(super) mean_reach_s: f64,
-    pub(super) std_reach_s: f64,
+    pub(crate) mean_reach_s: f64,
+    pub(crate) std_reach_s: f64,
 }
 
 impl Cell {
     /// Success count and reach-time moments of every leg in `legs`.
-    pub(super) fn of(legs: &Legs, decision_dt: f64) -> Self {
+    pub(crate) fn of(legs: &Legs, decision_dt: f64) -> Self {
         let all: Vec<Option<u32>> = legs.iter().flatten().flatten().copied().collect();
         let reach: Vec<f64> = all
             .iter()
@@ -40,12 +40,12 @@ impl Cell {
         }
     }
 
-    pub(super) fn success_pct(&self) -> f64 {
+    pub(crate) fn success_pct(&self) -> f64 {
         100.0 * self.successes as f64 / self.episodes.max(1) as f64
     }
 
     /// `mean (std)` of the reach time, or `-` when no episode succeeded.
-    pub(super) fn reach(&self) -> String {
+    pub(crate) fn reach(&self) -> String {
         if self.successes == 0 {
             "-".into()
         } else {
@@ -69,7 +69,7 @@ pub(super) struct Evaluated {
 /// The legs each env ended in a telemetry CSV (`sim-proc --telemetry`), in order: a leg's
 /// length runs from the env's first row after the previous ending to the row that ends it.
 /// Legs still running at the end are left out.
-pub(super) fn legs_in(path: &Path) -> anyhow::Result<Vec<Vec<Option<u32>>>> {
+pub(crate) fn legs_in(path: &Path) -> anyhow::Result<Vec<Vec<Option<u32>>>> {
     let mut legs: Vec<Vec<Option<u32>>> = Vec::new();
     let mut length: Vec<u32> = Vec::new();
     for row in TelemetryReader::open(path)? {

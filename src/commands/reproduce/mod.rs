@@ -31,13 +31,13 @@
 
 mod checks;
 mod coverage;
-mod evaluation;
-mod legs;
+pub(super) mod evaluation;
+pub(super) mod legs;
 mod pipeline;
 mod report;
 mod selection;
-mod stages;
-mod statistics;
+pub(super) mod stages;
+pub(super) mod statistics;
 mod tuning;
 
 use super::UserError;

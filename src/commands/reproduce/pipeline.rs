@@ -1,6 +1,6 @@
 //! The stages in their order (a–g, see the command's docs), each resumed or run afresh.
 
-use super::evaluation::eval_areas;
+use super::evaluation::{drive, eval_areas};
 use super::legs::Evaluated;
 use super::report::report;
 use super::selection::{Role, Selection, roles, specialists};
@@ -81,7 +81,7 @@ fn collect(p: &Pipeline, general: &Path) -> anyhow::Result<PathBuf> {
         std::fs::create_dir_all(p.fresh("c-collect")?)?;
         p.say("c-collect: the general model in every area (SPEC S7)");
         let n = r.collect_envs.unwrap_or(r.envs_per_area);
-        p.drive(&p.envs(n), general, r.collect_steps, &traces)?;
+        drive(&p.envs(n), general, r.collect_steps, &traces)?;
         p.finish("c-collect", serde_json::json!({ "traces": traces }))?;
     }
     Ok(traces)

@@ -161,18 +161,7 @@ impl Pipeline {
         name: &str,
         slot: PolicySlot,
     ) -> anyhow::Result<Vec<(u64, PathBuf)>> {
-        let dir = learner_dir(&self.stage_dir(name), slot).join(run_dir::CHECKPOINTS);
-        let mut files: Vec<(u64, PathBuf)> = std::fs::read_dir(&dir)
-            .with_context(|| format!("cannot list {}", dir.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter_map(|p| {
-                let update = run_dir::parse_checkpoint_file(p.file_name()?.to_str()?)?;
-                Some((update, p))
-            })
-            .collect();
-        files.sort();
-        anyhow::ensure!(!files.is_empty(), "no checkpoint in {}", dir.display());
-        Ok(files)
+        checkpoints_in(&learner_dir(&self.stage_dir(name), slot))
     }
 
     /// The newest checkpoint of stage `name`'s learner for `slot`.
@@ -185,18 +174,41 @@ impl Pipeline {
 
     /// Exports a checkpoint's actor to `out` with `learner-proc export`.
     pub(super) fn export(&self, ckpt: &Path, out: &Path) -> anyhow::Result<()> {
-        let status = Command::new(runtime::locate("learner-proc")?)
-            .arg("export")
-            .arg(ckpt)
-            .arg("--out")
-            .arg(out)
-            .args(["--obs-clip", &self.base.ppo.obs_clip.to_string()])
-            .status()?;
-        anyhow::ensure!(
-            status.success(),
-            "learner-proc export {} failed",
-            ckpt.display()
-        );
-        Ok(())
+        export(ckpt, out, self.base.ppo.obs_clip)
     }
+}
+
+/// The checkpoints of the learner whose directory is `learner`, oldest first, each with the
+/// update it was taken after; an error when there is none.
+pub(crate) fn checkpoints_in(learner: &Path) -> anyhow::Result<Vec<(u64, PathBuf)>> {
+    let dir = learner.join(run_dir::CHECKPOINTS);
+    let mut files: Vec<(u64, PathBuf)> = std::fs::read_dir(&dir)
+        .with_context(|| format!("cannot list {}", dir.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter_map(|p| {
+            let update = run_dir::parse_checkpoint_file(p.file_name()?.to_str()?)?;
+            Some((update, p))
+        })
+        .collect();
+    files.sort();
+    anyhow::ensure!(!files.is_empty(), "no checkpoint in {}", dir.display());
+    Ok(files)
+}
+
+/// Exports a checkpoint's actor to `out` with `learner-proc export`, its observations
+/// clipped at `obs_clip` as the learner clipped them.
+pub(crate) fn export(ckpt: &Path, out: &Path, obs_clip: f64) -> anyhow::Result<()> {
+    let status = Command::new(runtime::locate("learner-proc")?)
+        .arg("export")
+        .arg(ckpt)
+        .arg("--out")
+        .arg(out)
+        .args(["--obs-clip", &obs_clip.to_string()])
+        .status()?;
+    anyhow::ensure!(
+        status.success(),
+        "learner-proc export {} failed",
+        ckpt.display()
+    );
+    Ok(())
 }

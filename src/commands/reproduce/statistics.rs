@@ -4,7 +4,7 @@ use super::legs::{Legs, common_legs};
 use statrs::distribution::{ContinuousCDF, StudentsT};
 
 /// Mean and half-width of the 95 % confidence interval of the mean, with [`t975`].
-pub(super) fn mean_ci(xs: &[f64]) -> (f64, f64) {
+pub(crate) fn mean_ci(xs: &[f64]) -> (f64, f64) {
     let n = xs.len();
     let mean = xs.iter().sum::<f64>() / n.max(1) as f64;
     if n < 2 {
