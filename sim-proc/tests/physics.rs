@@ -224,6 +224,50 @@ fn a_randomized_world_pushes_the_robot_every_push_interval() {
     );
 }
 
+/// How far a robot with its wheels held slides in 3 s down a plane tilted by `incline_deg`
+/// (gravity turned instead of the ground), in `configs/moon.toml`'s world: lunar gravity and
+/// regolith under the wheels, and here under the skid too (its own friction no lower than the
+/// ground's), so that the whole robot stands on regolith as a block would.
+fn moon_slide(incline_deg: f64) -> f64 {
+    let moon = concat!(env!("CARGO_MANIFEST_DIR"), "/../configs/moon.toml");
+    let mut cfg = common::Config::load(std::path::Path::new(moon))
+        .expect("configs/moon.toml")
+        .sim;
+    cfg.terrain.flat_relief = 0.0;
+    cfg.robot.caster_friction = 1.0;
+    cfg.physics_dt = 1.0 / 120.0;
+    let terrain = SharedTerrain::new(Terrain::procedural(&cfg.terrain), cfg.terrain.collider);
+    let (mut world, robot) = build_world(&cfg, &terrain, [-1.0, -0.25], 0.0, AreaKind::Flat);
+    let held = robot.command(&mut world, &cfg.robot, [0.0, 0.0]);
+    for _ in 0..120 {
+        world.step_with_events(&held, &());
+    }
+    let tilt = incline_deg.to_radians();
+    let g = cfg.gravity as f32;
+    world.gravity = glam::Vec3::new(0.0, -g * tilt.cos() as f32, -g * tilt.sin() as f32);
+    let start = world.bodies[robot.chassis].translation();
+    for _ in 0..360 {
+        world.step_with_events(&held, &());
+    }
+    f64::from((world.bodies[robot.chassis].translation() - start).length())
+}
+
+#[test]
+fn on_regolith_a_robot_holds_below_its_friction_angle_and_slides_above_it() {
+    // configs/moon.toml: μ = 0.84 = tan 40°.
+    let phi = 0.84f64.atan().to_degrees();
+    let (below, above) = (moon_slide(phi - 5.0), moon_slide(phi + 5.0));
+    assert!(below < 0.005, "{:.1}°: slid {below:.4} m", phi - 5.0);
+    // A block sliding from rest at g·(sin θ − μ·cos θ) = 0.18 m/s² covers 0.82 m in 3 s.
+    let theta = (phi + 5.0).to_radians();
+    let want = 0.5 * 1.62 * (theta.sin() - 0.84 * theta.cos()) * 9.0;
+    assert!(
+        (above / want - 1.0).abs() < 0.15,
+        "{:.1}°: slid {above:.3} m, a block {want:.3} m",
+        phi + 5.0
+    );
+}
+
 /// How far the robot of an env on a plane drives in each decision step of one physics step:
 /// 5 s at rest, then both wheels commanded at 2 rad/s, with `latency` steps of delay.
 fn steps_with_latency(latency: usize) -> Vec<f64> {

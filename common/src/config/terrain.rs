@@ -65,6 +65,10 @@ settings! {
         pub roughness_scale: f64 = 0.8 => real(0.0, 2.0), "", Research;
         /// Width of the blend between areas and the surrounding floor.
         pub blend: f64 = 0.3 => real(0.0, 5.0), "m", Advanced;
+        /// Friction of flat and rough ground, of which a contact takes the lower with the wheel's
+        /// (or the skid's); none: the paper's 1.0, averaged with the wheel's. Lunar regolith:
+        /// the tangent of its friction angle (configs/moon.toml).
+        pub ground_friction: Option<f64> = None => real(0.0, 5.0), "", Research;
         /// The `slope` kind's ground.
         pub slope: SlopeConfig = SlopeConfig::default();
         /// The `gravel` kind's ground.
@@ -214,15 +218,16 @@ impl TerrainConfig {
             .map(Area::rect)
     }
 
-    /// The wheels' friction on ground of `kind`: `None` for SPEC S1's flat and rough ground
-    /// (the paper's contact, the floor's 1.0 averaged with the wheel's), the kind's setting
-    /// otherwise.
+    /// The wheels' friction on ground of `kind`: for SPEC S1's flat and rough ground
+    /// `ground-friction`, whose `None` is the paper's contact (the floor's 1.0 averaged with the
+    /// wheel's); the kind's setting otherwise.
     pub fn friction_of(&self, kind: AreaKind) -> Option<f64> {
         match kind {
             AreaKind::Slope => Some(self.slope.friction),
             AreaKind::Gravel => Some(self.gravel.friction),
             AreaKind::Sand => Some(self.sand.friction),
-            AreaKind::Flat | AreaKind::Rough | AreaKind::Mixed => None,
+            AreaKind::Flat | AreaKind::Rough => self.ground_friction,
+            AreaKind::Mixed => None,
         }
     }
 
