@@ -156,6 +156,27 @@ fn the_quick_pipeline_reports_every_table_and_resumes() {
         report.contains("## Specialists chosen on validation courses (stage e)"),
         "{report}"
     );
+    // The robustness worlds: the general model and switching on the mixed course in each,
+    // pushed worlds drawing their pushes, switching through the full runtime.
+    let section = report
+        .split("## Robustness worlds (stage f)")
+        .nth(1)
+        .expect("robustness section");
+    let worlds: Vec<&str> = section
+        .split("\n## ")
+        .next()
+        .unwrap_or_default()
+        .lines()
+        .filter(|l| l.starts_with("| ") && !l.starts_with("| world"))
+        .collect();
+    assert_eq!(worlds.len(), 2, "{report}");
+    assert!(worlds[1].starts_with("| pushed-on-the-moon |"), "{report}");
+    let pushed = std::fs::read_to_string(
+        out.join("f-robustness/pushed-on-the-moon/switching-mixed-0/config.toml"),
+    )
+    .expect("a robustness world's switching config");
+    assert!(pushed.contains("gravity = 1.62\n"), "{pushed}");
+    assert!(pushed.contains("push-interval = 1.0\n"), "{pushed}");
     // The switch's reading: its own (window 20, dwell 10) and the 5-tick dwell at windows 20
     // and 40, each on the mixed validation courses; stage f switches with the one chosen.
     let tuning: serde_json::Value = serde_json::from_str(

@@ -117,6 +117,7 @@ impl Config {
             cfg.estimator.model.iter_mut().for_each(resolve);
             cfg.estimator.kinds_model.iter_mut().for_each(resolve);
             cfg.net.key_file.iter_mut().for_each(resolve);
+            cfg.reproduce.robustness_worlds.iter_mut().for_each(resolve);
             cfg.sim
                 .terrain
                 .heightmap

@@ -1,8 +1,9 @@
 //! `[reproduce]`: the stages of `lavatube reproduce` (DESIGN §6, SPEC S6–S8).
 
 use super::range::invalid;
-use super::setting::{choices, count, real, settings};
+use super::setting::{choices, count, form, real, settings};
 use super::{AreaKind, ConfigError};
+use std::path::PathBuf;
 
 settings! {
     /// `lavatube reproduce`: the paper's pipeline, stage by stage (DESIGN §6, SPEC S6–S8).
@@ -58,6 +59,12 @@ settings! {
         /// (e) Values of `sim.switch-dwell` tried with each of `switch-windows`. Empty:
         /// `sim.switch-dwell` alone, as in the paper.
         pub switch_dwells: Vec<usize> = Vec::new() => count(1, 10_000), "ticks", Research;
+        /// (f) A worlds file (`lavatube evaluate --worlds`, e.g. `worlds/robustness.toml`):
+        /// stage f also drives the general model and switching on the mixed course in each of
+        /// its worlds, laid over this config without its `[sim.randomize]`; none: no such drive.
+        pub robustness_worlds: Option<PathBuf> = None => form("a file path"), "", Research;
+        /// (f) Episodes per model and robustness world.
+        pub robustness_episodes: u64 = 200 => count(1, 1_000_000), "episodes", Advanced;
         /// (g) Non-inferiority margin of the shape checks in success: "A at least as good as
         /// B" reads "no" only when A falls short of B by more than this many percentage
         /// points of success (or by more than `margin-s`), beyond the noise of the paired

@@ -5,7 +5,7 @@
 //! time (mean ± 95 % CI over the episodes) is printed and written with its JSON and a chart.
 
 mod table;
-mod worlds;
+pub(super) mod worlds;
 
 use super::reproduce::evaluation::{course_ticks, drive, drive_courses};
 use super::reproduce::stages::{checkpoints_in, export};

@@ -233,6 +233,13 @@ impl Pipeline {
         self.courses("f-eval", self.base.run.seed, r.eval_episodes)
     }
 
+    /// The robustness worlds' courses: stage f's seeds, `reproduce.robustness-episodes` a
+    /// cell, driven by `stage` (for progress lines).
+    pub(super) fn robustness_courses(&self, stage: &'static str) -> Courses {
+        let r = &self.base.reproduce;
+        self.courses(stage, self.base.run.seed, r.robustness_episodes)
+    }
+
     /// Stage e's validation courses, `VALIDATION_SEEDS` away from stage f's, driven by
     /// `stage` (for progress lines).
     pub(super) fn validation_courses(&self, stage: &'static str) -> Courses {

@@ -20,13 +20,16 @@
 //! f. `f-eval`: success rate and reach time of the general model and every specialist in
 //!    each area (Table 1), and of switching between the specialists with stage d's
 //!    classifier, every model on the same seeded courses (`EpisodeStart::Course`), in every
-//!    area and on the mixed course;
+//!    area and on the mixed course; `f-robustness` (with `reproduce.robustness-worlds`):
+//!    the general model and switching on the mixed course in each world of the file
+//!    (EXPERIMENT E22);
 //! g. `report.md`: every table beside the paper's numbers, figures, learning curves, and the
 //!    paper's claims about Table 1 checked leg by leg on the legs both models drove.
 //!
 //! Modules: [`pipeline`] runs the stages in order, [`stages`] holds the pipeline's setting
 //! and keeps the stages' directories and done markers, [`evaluation`] drives the seeded
-//! courses whose [`legs`] pair up, [`selection`] picks the specialists, [`tuning`] the switch's window and dwell, [`statistics`] and
+//! courses whose [`legs`] pair up, [`selection`] picks the specialists, [`tuning`] the
+//! switch's window and dwell, [`robustness`] drives the other worlds, [`statistics`] and
 //! [`checks`] compare the models, [`report`] writes the Markdown.
 
 mod checks;
@@ -35,6 +38,7 @@ pub(super) mod evaluation;
 pub(super) mod legs;
 mod pipeline;
 mod report;
+mod robustness;
 mod selection;
 pub(super) mod stages;
 pub(super) mod statistics;
@@ -86,6 +90,12 @@ pub fn reproduce(args: ReproduceArgs) -> anyhow::Result<ExitCode> {
                 .into(),
         )
         .into());
+    }
+    if let Some(file) = &base.reproduce.robustness_worlds {
+        // Refused now, not after hours of training.
+        let mut nominal = base.clone();
+        nominal.sim.randomize = common::config::RandomizeConfig::default();
+        super::evaluate::worlds::read(file, &nominal)?;
     }
     let seeds: Vec<u64> = (0..args.seeds)
         .map(|k| base.run.seed.wrapping_add(k))

@@ -3,6 +3,7 @@
 use super::evaluation::{drive, eval_areas};
 use super::legs::Evaluated;
 use super::report::report;
+use super::robustness;
 use super::selection::{Role, Selection, roles, specialists};
 use super::stages::Pipeline;
 use super::tuning::Reading;
@@ -44,7 +45,8 @@ pub(super) fn run(p: &Pipeline) -> anyhow::Result<Vec<Evaluated>> {
         .collect();
     let (reading, tuning) = p.reading(&frozen)?;
     let cells = evaluate(p, &models, &frozen, reading)?;
-    let report = report(p, &cells, &selections, tuning.as_ref())?;
+    let worlds = robustness::drive(p, &policies.join("general.policy"), &frozen, reading)?;
+    let report = report(p, &cells, &selections, tuning.as_ref(), worlds.as_deref())?;
     let path = p.out.join("report.md");
     std::fs::write(&path, report).with_context(|| format!("cannot write {}", path.display()))?;
     println!("report: {}", path.display());

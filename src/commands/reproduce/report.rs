@@ -5,6 +5,7 @@ use super::checks::{Check, SHAPE_CHECKS_HEADING, checks, shape_checks};
 use super::coverage;
 use super::evaluation::eval_areas;
 use super::legs::{Cell, Evaluated};
+use super::robustness;
 use super::selection::{GENERAL, Selection, chosen_before, roles};
 use super::stages::Pipeline;
 use super::statistics::mean_ci;
@@ -158,6 +159,7 @@ pub(super) fn seeds_report(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result
     }
     md += &seeds_shape_checks(runs, beside);
     md += &coverage::seeds_section(runs);
+    md += &robustness::seeds_section(runs, beside)?;
     md += &seeds_selection(runs)?;
     md += &coverage::seeds_tuning(runs)?;
     md += &seeds_table_3(runs, beside)?;
@@ -317,6 +319,7 @@ pub(super) fn report(
     cells: &[Evaluated],
     selections: &[Selection],
     tuning: Option<&Tuning>,
+    worlds: Option<&[robustness::World]>,
 ) -> anyhow::Result<String> {
     let r = &p.base.reproduce;
     let mut md = table_1(p, cells);
@@ -331,6 +334,9 @@ pub(super) fn report(
     }
     md += &shape_checks(cells, p.base.sim.decision_dt(), (r.margin_pp, r.margin_s));
     md += &coverage::section(cells, p.base.sim.decision_dt());
+    md += &worlds.map_or(String::new(), |w| {
+        robustness::section(w, p.base.sim.decision_dt())
+    });
     md += &selection_table(selections, r.validation_episodes);
     md += &tuning.map_or(String::new(), |t| coverage::tuning_section(t, p));
     md += &analysis(p)?;
