@@ -7,7 +7,7 @@ use super::evaluation::eval_areas;
 use super::legs::{Cell, Evaluated};
 use super::robustness;
 use super::selection::{GENERAL, Selection, chosen_before, roles};
-use super::stages::Pipeline;
+use super::stages::{Pipeline, Runs};
 use super::statistics::mean_ci;
 use super::tuning::Tuning;
 use anyhow::Context;
@@ -35,9 +35,6 @@ fn pm(xs: &[f64], digits: usize) -> String {
     let (m, h) = mean_ci(xs);
     format!("{m:.digits$} ± {h:.digits$}")
 }
-
-/// Several seeds' runs of the pipeline, each with its evaluated cells.
-pub(super) type Runs = [(Pipeline, Vec<Evaluated>)];
 
 /// Table 1's cell `i` over seeds: success % and mean reach time, each mean ± CI.
 fn table_1_cell(runs: &Runs, i: usize) -> (String, String) {

@@ -6,8 +6,7 @@
 
 use super::super::evaluate::worlds;
 use super::legs::{Cell, Evaluated};
-use super::report::Runs;
-use super::stages::Pipeline;
+use super::stages::{Pipeline, Runs};
 use super::statistics::mean_ci;
 use super::tuning::Reading;
 use common::config::{AreaKind, PolicySlot, RandomizeConfig};

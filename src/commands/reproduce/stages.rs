@@ -11,6 +11,9 @@ use common::run_dir::{self, learner_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+/// Several seeds' runs of the pipeline, each with its evaluated cells (stage f's).
+pub(super) type Runs = [(Pipeline, Vec<super::legs::Evaluated>)];
+
 /// The pipeline's base config, its output directory and whether it runs quietly.
 pub(super) struct Pipeline {
     pub(super) base: Config,
