@@ -61,12 +61,14 @@ fn draw(
     y_max: f64,
 ) -> Result<(), Box<dyn std::error::Error>> {
     let n = groups.len() as f64;
+    // Headroom above the highest value for the legend, so it covers no bar.
+    let top = y_max * 1.3;
     let mut chart = ChartBuilder::on(root)
         .caption(title, (FONT, 20))
         .margin(12)
         .x_label_area_size(70)
         .y_label_area_size(60)
-        .build_cartesian_2d(0.0..n, 0.0..y_max)?;
+        .build_cartesian_2d(0.0..n, 0.0..top)?;
     chart
         .configure_mesh()
         .disable_x_mesh()
@@ -103,7 +105,7 @@ fn draw(
         .background_style(WHITE.mix(0.85))
         .border_style(BLACK)
         .label_font((FONT, 14))
-        .position(SeriesLabelPosition::LowerRight)
+        .position(SeriesLabelPosition::UpperRight)
         .draw()?;
     let style = TextStyle::from((FONT, 14).into_font()).pos(text_anchor());
     for (g, name) in groups.iter().enumerate() {
