@@ -25,8 +25,7 @@ impl Actuator {
         in_flight.resize(cfg.command_latency, [0.0; 2]);
         Self {
             in_flight,
-            gain: (cfg.motor_time_constant > 0.0)
-                .then(|| (1.0 - (-dt / cfg.motor_time_constant).exp()) as f32),
+            gain: gain(cfg, dt),
             speeds: [0.0; 2],
         }
     }
@@ -51,8 +50,7 @@ impl Actuator {
     /// `[sim.randomize]`), keeping the wheels' speeds: a longer delay line holds the speeds
     /// the wheels already drive at, a shorter one drops its oldest commands.
     pub fn retune(&mut self, cfg: &RobotConfig, dt: f64) {
-        let tuned = Self::new(cfg, dt);
-        self.gain = tuned.gain;
+        self.gain = gain(cfg, dt);
         while self.in_flight.len() > cfg.command_latency {
             self.in_flight.pop_front();
         }
@@ -66,6 +64,12 @@ impl Actuator {
         self.in_flight.iter_mut().for_each(|c| *c = [0.0; 2]);
         self.speeds = [0.0; 2];
     }
+}
+
+/// The share of the way to the command the motors of `cfg` move each physics step of `dt`
+/// seconds, 1 - exp(-dt/τ); `None` without a time constant.
+fn gain(cfg: &RobotConfig, dt: f64) -> Option<f32> {
+    (cfg.motor_time_constant > 0.0).then(|| (1.0 - (-dt / cfg.motor_time_constant).exp()) as f32)
 }
 
 #[cfg(test)]

@@ -184,7 +184,7 @@ impl Env {
         let Some(r) = self.randomizer.as_mut() else {
             return;
         };
-        self.cfg = r.draw(self.episode_index);
+        r.draw(self.episode_index, &mut self.cfg);
         let w = r.world;
         self.world.gravity = Vector::Y * -(w.gravity as f32);
         self.robot

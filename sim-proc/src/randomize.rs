@@ -7,7 +7,7 @@
 //! one env's draws never shift another's. The same holds for the observation noise of tick t.
 
 use common::Rng;
-use common::config::{AreaKind, ImuConfig, RandomizeConfig, SensorErrors, SimConfig};
+use common::config::{AreaKind, ImuConfig, SensorErrors, SimConfig};
 
 /// Env `id`'s worlds come from stream `WORLD_STREAMS + id` of the run seed.
 const WORLD_STREAMS: u64 = 3 << 32;
@@ -91,9 +91,9 @@ impl WorldDraw {
             .map_or(1.0, |i| self.friction_scale[i])
     }
 
-    /// `nominal` with this world's robot, gravity and IMU written in.
-    pub fn configure(&self, nominal: &SimConfig) -> SimConfig {
-        let mut cfg = nominal.clone();
+    /// Writes this world's robot, gravity and IMU into `cfg`, an env's copy of `nominal` (the
+    /// IMU's errors are `nominal`'s scaled).
+    pub fn configure(&self, cfg: &mut SimConfig, nominal: &SimConfig) {
         let r = &mut cfg.robot;
         r.chassis_mass = self.chassis_mass;
         r.wheel_radius = self.wheel_radius;
@@ -103,7 +103,24 @@ impl WorldDraw {
         r.motor_time_constant = self.motor_time_constant;
         cfg.gravity = self.gravity;
         cfg.imu = scaled_imu(&nominal.imu, self.imu_error_scale);
-        cfg
+    }
+
+    /// The world `cfg` describes, nothing drawn.
+    pub fn nominal(cfg: &SimConfig) -> Self {
+        let r = &cfg.robot;
+        Self {
+            friction_scale: [1.0; AreaKind::KINDS.len()],
+            chassis_mass: r.chassis_mass,
+            com_offset: [0.0; 3],
+            payload: 0.0,
+            wheel_radius: r.wheel_radius,
+            motor_max_torque: r.motor_max_torque,
+            motor_damping: r.motor_damping,
+            command_latency: r.command_latency,
+            motor_time_constant: r.motor_time_constant,
+            gravity: cfg.gravity,
+            imu_error_scale: 1.0,
+        }
     }
 }
 
@@ -128,7 +145,7 @@ fn scaled_imu(imu: &ImuConfig, s: f64) -> ImuConfig {
 /// One env's randomization: its nominal world, its streams and its current episode's draw.
 #[derive(Debug, Clone)]
 pub struct Randomizer {
-    cfg: RandomizeConfig,
+    /// The env's config as written, `[sim.randomize]` with it.
     nominal: SimConfig,
     /// Seeds episode k's world as stream k.
     worlds: u64,
@@ -144,7 +161,6 @@ impl Randomizer {
     /// Env `id`'s randomization in a run of `seed`; `None` when `cfg.randomize` draws nothing.
     pub fn new(cfg: &SimConfig, seed: u64, id: usize) -> Option<Self> {
         cfg.randomize.is_active().then(|| Self {
-            cfg: cfg.randomize.clone(),
             nominal: cfg.clone(),
             worlds: Rng::derive(seed, WORLD_STREAMS + id as u64).next_u64(),
             noise: Rng::derive(seed, NOISE_STREAMS + id as u64).next_u64(),
@@ -153,27 +169,26 @@ impl Randomizer {
         })
     }
 
-    /// Draws episode `index`'s world: the env's config with it written in.
-    pub fn draw(&mut self, index: u64) -> SimConfig {
+    /// Draws episode `index`'s world and writes it into `cfg`, the env's config.
+    pub fn draw(&mut self, index: u64, cfg: &mut SimConfig) {
         (self.world, self.episode) = self.world_of(index);
-        self.world.configure(&self.nominal)
+        self.world.configure(cfg, &self.nominal);
     }
 
     /// Episode `index`'s world, and its stream after the draw (its pushes').
     pub fn world_of(&self, index: u64) -> (WorldDraw, Rng) {
-        let (c, n) = (&self.cfg, &self.nominal);
+        let (n, c) = (&self.nominal, &self.nominal.randomize);
         let mut rng = Rng::derive(self.worlds, index);
-        let mut span = |[lo, hi]: [f64; 2]| rng.range(lo, hi);
-        let friction_scale = AreaKind::KINDS.map(|_| span(c.friction_scale));
-        let chassis_mass = n.robot.chassis_mass * span(c.mass_scale);
-        let com_offset = c.com_offset.map(|m| span([-m, m]));
-        let payload = span(c.payload);
-        let wheel_radius = n.robot.wheel_radius * span(c.wheel_radius_scale);
-        let motor_max_torque = n.robot.motor_max_torque * span(c.torque_scale);
-        let motor_damping = n.robot.motor_damping * span(c.gain_scale);
+        let span = |rng: &mut Rng, [lo, hi]: [f64; 2]| rng.range(lo, hi);
+        let friction_scale = AreaKind::KINDS.map(|_| span(&mut rng, c.friction_scale));
+        let chassis_mass = n.robot.chassis_mass * span(&mut rng, c.mass_scale);
+        let com_offset = c.com_offset.map(|m| span(&mut rng, [-m, m]));
+        let payload = span(&mut rng, c.payload);
+        let wheel_radius = n.robot.wheel_radius * span(&mut rng, c.wheel_radius_scale);
+        let motor_max_torque = n.robot.motor_max_torque * span(&mut rng, c.torque_scale);
+        let motor_damping = n.robot.motor_damping * span(&mut rng, c.gain_scale);
         let [lo, hi] = c.latency;
         let command_latency = n.robot.command_latency + lo + rng.below(hi - lo + 1);
-        let mut span = |[lo, hi]: [f64; 2]| rng.range(lo, hi);
         let world = WorldDraw {
             friction_scale,
             chassis_mass,
@@ -183,9 +198,9 @@ impl Randomizer {
             motor_max_torque,
             motor_damping,
             command_latency,
-            motor_time_constant: n.robot.motor_time_constant + span(c.time_constant),
-            gravity: n.gravity * span(c.gravity_scale),
-            imu_error_scale: span(c.imu_error_scale),
+            motor_time_constant: n.robot.motor_time_constant + span(&mut rng, c.time_constant),
+            gravity: n.gravity * span(&mut rng, c.gravity_scale),
+            imu_error_scale: span(&mut rng, c.imu_error_scale),
         };
         (world, rng)
     }
@@ -194,16 +209,17 @@ impl Randomizer {
     /// N·s: every `push-interval` seconds, its size drawn from `push-impulse` and its
     /// direction uniform.
     pub fn push(&mut self, steps: u32) -> Option<[f64; 2]> {
-        if !self.cfg.pushes() || steps == 0 {
+        let c = &self.nominal.randomize;
+        if !c.pushes() || steps == 0 {
             return None;
         }
-        let every = (self.cfg.push_interval / self.nominal.decision_dt())
+        let every = (c.push_interval / self.nominal.decision_dt())
             .round()
             .max(1.0) as u32;
         if !steps.is_multiple_of(every) {
             return None;
         }
-        let [lo, hi] = self.cfg.push_impulse;
+        let [lo, hi] = c.push_impulse;
         let size = self.episode.range(lo, hi);
         let angle = self
             .episode
@@ -214,7 +230,8 @@ impl Randomizer {
     /// Tick `tick`'s observation noise, when any: the target's three coordinates' (m), then
     /// the three attitude angles' (rad).
     pub fn noise(&self, tick: u64) -> Option<[f64; 6]> {
-        let (target, attitude) = (self.cfg.target_noise, self.cfg.attitude_noise);
+        let c = &self.nominal.randomize;
+        let (target, attitude) = (c.target_noise, c.attitude_noise);
         if target == 0.0 && attitude == 0.0 {
             return None;
         }
@@ -224,29 +241,10 @@ impl Randomizer {
     }
 }
 
-impl WorldDraw {
-    /// The world `cfg` describes, nothing drawn.
-    pub fn nominal(cfg: &SimConfig) -> Self {
-        let r = &cfg.robot;
-        Self {
-            friction_scale: [1.0; AreaKind::KINDS.len()],
-            chassis_mass: r.chassis_mass,
-            com_offset: [0.0; 3],
-            payload: 0.0,
-            wheel_radius: r.wheel_radius,
-            motor_max_torque: r.motor_max_torque,
-            motor_damping: r.motor_damping,
-            command_latency: r.command_latency,
-            motor_time_constant: r.motor_time_constant,
-            gravity: cfg.gravity,
-            imu_error_scale: 1.0,
-        }
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use common::config::RandomizeConfig;
 
     fn randomized() -> SimConfig {
         let mut cfg = SimConfig {
@@ -285,7 +283,8 @@ mod tests {
         let mut rz = Randomizer::new(&cfg, 7, 3).expect("active");
         let mut latencies = std::collections::BTreeSet::new();
         for episode in 0..500 {
-            let env_cfg = rz.draw(episode);
+            let mut env_cfg = cfg.clone();
+            rz.draw(episode, &mut env_cfg);
             let w = rz.world;
             assert!(
                 w.friction_scale
@@ -332,7 +331,7 @@ mod tests {
             let mut rz = Randomizer::new(&cfg, seed, id).expect("active");
             (0..20)
                 .map(|k| {
-                    rz.draw(k);
+                    rz.draw(k, &mut cfg.clone());
                     (rz.world, rz.push(10), rz.noise(k))
                 })
                 .collect::<Vec<_>>()
@@ -342,7 +341,7 @@ mod tests {
         assert_ne!(worlds(7, 0), worlds(8, 0));
         // Episode k's world does not depend on the episodes drawn before it.
         let mut rz = Randomizer::new(&cfg, 7, 0).expect("active");
-        rz.draw(12);
+        rz.draw(12, &mut cfg.clone());
         assert_eq!(rz.world, worlds(7, 0)[12].0);
     }
 
@@ -350,7 +349,7 @@ mod tests {
     fn pushes_come_every_interval_with_a_size_in_range() {
         let cfg = randomized();
         let mut rz = Randomizer::new(&cfg, 1, 0).expect("active");
-        rz.draw(0);
+        rz.draw(0, &mut cfg.clone());
         // 1 s at 0.1 s per decision step: every 10 steps.
         let due: Vec<u32> = (0..35).filter(|s| rz.push(*s).is_some()).collect();
         assert_eq!(due, vec![10, 20, 30]);
@@ -364,10 +363,9 @@ mod tests {
     fn the_default_randomizes_nothing() {
         assert!(Randomizer::new(&SimConfig::default(), 1, 0).is_none());
         let nominal = WorldDraw::nominal(&SimConfig::default());
-        assert_eq!(
-            nominal.configure(&SimConfig::default()),
-            SimConfig::default()
-        );
+        let mut cfg = SimConfig::default();
+        nominal.configure(&mut cfg, &SimConfig::default());
+        assert_eq!(cfg, SimConfig::default());
         assert_eq!(nominal.values().len(), WorldDraw::columns().len());
     }
 }

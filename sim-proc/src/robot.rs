@@ -132,10 +132,10 @@ fn wheel_shape(cfg: &RobotConfig) -> SharedShape {
 }
 
 impl Robot {
-    /// Gives the built robot `cfg`'s chassis mass, wheel radius (the skid following, level
-    /// with the wheels) and torque limit, with its
-    /// chassis's centre of mass moved by `com_offset` (m, chassis frame) and a point mass of
-    /// `payload` kg on top of the chassis: a world drawn by `[sim.randomize]`.
+    /// Gives the built robot, where it stands, `cfg`'s chassis mass, wheel radius (the skid
+    /// moved to stay level with the wheels) and torque limit, its chassis's centre of mass
+    /// moved by `com_offset` (m, chassis frame) and a point mass of `payload` kg on top of the
+    /// chassis: a world drawn by `[sim.randomize]`.
     pub fn refit(
         &self,
         world: &mut PhysicsWorld,
