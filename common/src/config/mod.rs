@@ -93,15 +93,7 @@ impl Config {
         let table: toml::Table = parse_toml(&text, path)?;
         refuse_replaced_keys(&table)?;
         let mut cfg: Self = if table.contains_key(EXTENDS) {
-            let merged = extended(table, path, 0)?;
-            toml::Value::Table(merged)
-                .try_into()
-                .map_err(|e: toml::de::Error| ConfigError::Parse {
-                    path: path.to_path_buf(),
-                    line: 1,
-                    column: 1,
-                    message: e.message().replace('\n', " "),
-                })?
+            from_merged(extended(table, path, 0)?, path)?
         } else {
             parse_toml(&text, path)?
         };
@@ -138,19 +130,15 @@ impl Config {
     /// This config with `top` laid over it as a config that `extends` it would be (a section
     /// merges key by key, a field replaces), then checked; `path` labels errors.
     pub fn overlaid(&self, top: toml::Table, path: &Path) -> Result<Self, ConfigError> {
-        let parse = |message: String| ConfigError::Parse {
+        refuse_replaced_keys(&top)?;
+        let mut base = toml::Table::try_from(self).map_err(|e| ConfigError::Parse {
             path: path.to_path_buf(),
             line: 1,
             column: 1,
-            message: message.replace('\n', " "),
-        };
-        let mut base = toml::Table::try_from(self).map_err(|e| parse(e.to_string()))?;
-        refuse_replaced_keys(&top)?;
-        let fields: HashSet<String> = reference::rows().into_iter().map(|r| r.key).collect();
-        overlay(&mut base, top, "", &fields);
-        let cfg: Self = toml::Value::Table(base)
-            .try_into()
-            .map_err(|e: toml::de::Error| parse(e.message().to_owned()))?;
+            message: e.to_string().replace('\n', " "),
+        })?;
+        lay_over(&mut base, top);
+        let cfg = from_merged(base, path)?;
         cfg.validate()?;
         Ok(cfg)
     }
@@ -249,9 +237,28 @@ fn extended(mut table: toml::Table, path: &Path, depth: usize) -> Result<toml::T
     let base_table = parse_toml(&text, &base_path)?;
     refuse_replaced_keys(&base_table)?;
     let mut merged = extended(base_table, &base_path, depth + 1)?;
-    let fields: HashSet<String> = reference::rows().into_iter().map(|r| r.key).collect();
-    overlay(&mut merged, table, "", &fields);
+    lay_over(&mut merged, table);
     Ok(merged)
+}
+
+/// Lays the config table `top` over the config table `base` ([`overlay`], knowing which
+/// keys are fields).
+fn lay_over(base: &mut toml::Table, top: toml::Table) {
+    let fields: HashSet<String> = reference::rows().into_iter().map(|r| r.key).collect();
+    overlay(base, top, "", &fields);
+}
+
+/// The config a merged table holds (unvalidated); its errors name `path`, the file the
+/// table was laid over from, without a line (a merge has none).
+fn from_merged(table: toml::Table, path: &Path) -> Result<Config, ConfigError> {
+    toml::Value::Table(table)
+        .try_into()
+        .map_err(|e: toml::de::Error| ConfigError::Parse {
+            path: path.to_path_buf(),
+            line: 1,
+            column: 1,
+            message: e.message().replace('\n', " "),
+        })
 }
 
 /// Lays `top` over `base`: a section merges key by key; a field, a table-valued one

@@ -1,8 +1,8 @@
 //! What `lavatube evaluate` found: per world and policy, the success rate and the reach time
 //! with their 95 % intervals over the episodes, as a Markdown table, JSON and a chart.
 
-use super::super::reproduce::legs::Legs;
-use super::super::reproduce::statistics::mean_ci;
+use super::super::reproduce::legs::{Legs, reach_times};
+use super::super::reproduce::statistics::{interval, mean_ci};
 use anyhow::Context;
 use common::bars::{Series, grouped_bars};
 use std::path::Path;
@@ -23,20 +23,14 @@ pub struct Row {
 impl Row {
     /// The row of `policy` in `world` from the legs it drove, at `decision_dt` s per tick.
     pub fn of(world: &str, policy: &str, legs: &Legs, decision_dt: f64) -> Self {
-        let outcomes: Vec<Option<u32>> = legs.iter().flatten().flatten().copied().collect();
-        let success: Vec<f64> = outcomes
-            .iter()
-            .map(|o| if o.is_some() { 100.0 } else { 0.0 })
-            .collect();
-        let reach: Vec<f64> = outcomes
-            .iter()
-            .flatten()
-            .map(|&t| f64::from(t) * decision_dt)
-            .collect();
+        let (episodes, reach) = reach_times(legs, decision_dt);
+        // Each leg's success, 100 or 0: its mean is the success rate.
+        let mut success = vec![0.0; episodes];
+        success[..reach.len()].fill(100.0);
         Self {
             world: world.into(),
             policy: policy.into(),
-            episodes: outcomes.len(),
+            episodes,
             success_pct: mean_ci(&success),
             reach_s: if reach.is_empty() {
                 (f64::NAN, f64::NAN)
@@ -52,21 +46,16 @@ impl Row {
             "{}: {}: {}% of {} episodes, reach s {}",
             self.world,
             self.policy,
-            pm(self.success_pct, 1),
+            interval(self.success_pct, 1),
             self.episodes,
-            pm(self.reach_s, 2)
+            interval(self.reach_s, 2)
         )
     }
 }
 
-/// `mean ± half` with `digits` decimals; the mean alone without an interval, `-` without a
-/// mean (no episode reached the target).
-fn pm((mean, half): (f64, f64), digits: usize) -> String {
-    match (mean.is_finite(), half.is_finite()) {
-        (false, _) => "-".into(),
-        (true, false) => format!("{mean:.digits$}"),
-        (true, true) => format!("{mean:.digits$} ± {half:.digits$}"),
-    }
+/// The row of `policy` in `world`, if it drove there.
+fn find<'a>(rows: &'a [Row], world: &str, policy: &str) -> Option<&'a Row> {
+    rows.iter().find(|r| r.world == world && r.policy == policy)
 }
 
 /// The Markdown table: a line per world, success % and reach s per policy.
@@ -80,10 +69,13 @@ pub fn markdown(rows: &[Row], worlds: &[String], policies: &[String]) -> String 
     for w in worlds {
         out += &format!("\n| {w} |");
         for p in policies {
-            match rows.iter().find(|r| &r.world == w && &r.policy == p) {
-                Some(r) => out += &format!(" {} | {} |", pm(r.success_pct, 1), pm(r.reach_s, 2)),
-                None => out += " | |",
-            }
+            out += &find(rows, w, p).map_or(" | |".into(), |r| {
+                format!(
+                    " {} | {} |",
+                    interval(r.success_pct, 1),
+                    interval(r.reach_s, 2)
+                )
+            });
         }
     }
     out + "\n"
@@ -110,11 +102,7 @@ pub fn write(
             label: p.clone(),
             values: worlds
                 .iter()
-                .map(|w| {
-                    rows.iter()
-                        .find(|r| &r.world == w && &r.policy == p)
-                        .map_or((0.0, f64::NAN), |r| r.success_pct)
-                })
+                .map(|w| find(rows, w, p).map_or((0.0, f64::NAN), |r| r.success_pct))
                 .collect(),
         })
         .collect();

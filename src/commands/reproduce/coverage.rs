@@ -5,7 +5,7 @@
 
 use super::legs::Evaluated;
 use super::stages::Pipeline;
-use super::statistics::mean_ci;
+use super::statistics::mean_pm;
 use super::tuning::{Tried, Tuning, tuned_before};
 use common::config::AreaKind;
 use common::coverage::Coverage;
@@ -68,11 +68,7 @@ fn cells_over_seeds(covs: &[&Coverage], dt: f64) -> String {
 /// has one.
 fn over_seeds<T>(xs: &[T], f: impl Fn(&T) -> Option<f64>, digits: usize) -> String {
     let xs: Vec<f64> = xs.iter().filter_map(f).collect();
-    if xs.is_empty() {
-        return "-".into();
-    }
-    let (m, h) = mean_ci(&xs);
-    format!("{m:.digits$} ± {h:.digits$}")
+    mean_pm(&xs, digits)
 }
 
 /// The section over seeds: every number as mean ± 95 % CI, the delay per kind in seconds.

@@ -23,17 +23,12 @@ pub(crate) struct Cell {
 impl Cell {
     /// Success count and reach-time moments of every leg in `legs`.
     pub(crate) fn of(legs: &Legs, decision_dt: f64) -> Self {
-        let all: Vec<Option<u32>> = legs.iter().flatten().flatten().copied().collect();
-        let reach: Vec<f64> = all
-            .iter()
-            .flatten()
-            .map(|&t| f64::from(t) * decision_dt)
-            .collect();
+        let (episodes, reach) = reach_times(legs, decision_dt);
         let n = reach.len().max(1) as f64;
         let mean = reach.iter().sum::<f64>() / n;
         let var = reach.iter().map(|r| (r - mean).powi(2)).sum::<f64>() / n;
         Self {
-            episodes: all.len() as u64,
+            episodes: episodes as u64,
             successes: reach.len() as u64,
             mean_reach_s: mean,
             std_reach_s: var.sqrt(),
@@ -52,6 +47,18 @@ impl Cell {
             format!("{:.2} ({:.2})", self.mean_reach_s, self.std_reach_s)
         }
     }
+}
+
+/// How many legs `legs` holds, and the reach time of each that reached its target, seconds
+/// at `decision_dt` per step.
+pub(crate) fn reach_times(legs: &Legs, decision_dt: f64) -> (usize, Vec<f64>) {
+    let all = legs.iter().flatten().flatten();
+    let reach = all
+        .clone()
+        .flatten()
+        .map(|&t| f64::from(t) * decision_dt)
+        .collect();
+    (all.count(), reach)
 }
 
 /// A model's evaluation in an area: every leg it drove.

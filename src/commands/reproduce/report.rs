@@ -8,7 +8,7 @@ use super::legs::{Cell, Evaluated};
 use super::robustness;
 use super::selection::{GENERAL, Selection, chosen_before, roles};
 use super::stages::{Pipeline, Runs};
-use super::statistics::mean_ci;
+use super::statistics::mean_pm;
 use super::tuning::Tuning;
 use anyhow::Context;
 use common::config::{AreaKind, PolicySlot};
@@ -30,12 +30,6 @@ const PAPER_TABLE_3: [(u64, f64); 4] = [(10, 61.13), (20, 70.73), (40, 85.87), (
 /// The heading of the specialists' choice, in a run's report and in the seeds report.
 const SELECTION_HEADING: &str = "## Specialists chosen on validation courses (stage e)";
 
-/// `mean ± ci` over seeds.
-fn pm(xs: &[f64], digits: usize) -> String {
-    let (m, h) = mean_ci(xs);
-    format!("{m:.digits$} ± {h:.digits$}")
-}
-
 /// Table 1's cell `i` over seeds: success % and mean reach time, each mean ± CI.
 fn table_1_cell(runs: &Runs, i: usize) -> (String, String) {
     let cells: Vec<Cell> = runs
@@ -51,12 +45,7 @@ fn table_1_cell(runs: &Runs, i: usize) -> (String, String) {
         .filter(|c| c.successes > 0)
         .map(|c| c.mean_reach_s)
         .collect();
-    let reach = if reach.is_empty() {
-        "-".into()
-    } else {
-        pm(&reach, 2)
-    };
-    (pm(&success, 1), reach)
+    (mean_pm(&success, 1), mean_pm(&reach, 2))
 }
 
 /// Each seed's claims about Table 1.
@@ -97,11 +86,11 @@ fn claim_over_seeds(per_seed: &[(u64, Vec<Check>)], key: &str) -> [String; 3] {
         })
         .collect();
     [
-        pm(&d, 1),
+        mean_pm(&d, 1),
         if faster.is_empty() {
             "-".into()
         } else {
-            pm(&faster, 2)
+            mean_pm(&faster, 2)
         },
         verdicts.join("; "),
     ]
@@ -131,7 +120,7 @@ fn table_3(runs: &Runs) -> anyhow::Result<std::collections::BTreeMap<u64, String
     }
     Ok(by_window
         .into_iter()
-        .map(|(w, accs)| (w, pm(&accs, 2)))
+        .map(|(w, accs)| (w, mean_pm(&accs, 2)))
         .collect())
 }
 

@@ -7,7 +7,7 @@
 use super::super::evaluate::worlds;
 use super::legs::{Cell, Evaluated};
 use super::stages::{Pipeline, Runs};
-use super::statistics::mean_ci;
+use super::statistics::mean_pm;
 use super::tuning::Reading;
 use common::config::{AreaKind, PolicySlot, RandomizeConfig};
 use std::collections::BTreeMap;
@@ -100,17 +100,23 @@ fn reach(c: &Cell) -> String {
     }
 }
 
-/// Success % of model `i` (0 general, 1 switching) in world `name` of each run that drove it.
-fn success_over_seeds(runs: &Runs, name: &str, i: usize) -> anyhow::Result<Vec<f64>> {
-    let mut out = Vec::new();
+/// Success % of the general model and of switching in each world of each run, by world name;
+/// the runs' worlds read once each.
+fn success_by_world(runs: &Runs) -> anyhow::Result<Vec<(String, [Vec<f64>; 2])>> {
+    let mut out: Vec<(String, [Vec<f64>; 2])> = Vec::new();
     for (p, _) in runs {
-        let Some(worlds) = kept(p)? else { continue };
-        if let Some(c) = worlds
-            .iter()
-            .find(|w| w.name == name)
-            .and_then(|w| w.cells.get(i))
-        {
-            out.push(Cell::of(&c.legs, p.base.sim.decision_dt()).success_pct());
+        let dt = p.base.sim.decision_dt();
+        for w in kept(p)?.unwrap_or_default() {
+            let at = match out.iter().position(|(name, _)| *name == w.name) {
+                Some(at) => at,
+                None => {
+                    out.push((w.name.clone(), Default::default()));
+                    out.len() - 1
+                }
+            };
+            for (xs, c) in out[at].1.iter_mut().zip(&w.cells) {
+                xs.push(Cell::of(&c.legs, dt).success_pct());
+            }
         }
     }
     Ok(out)
@@ -119,10 +125,12 @@ fn success_over_seeds(runs: &Runs, name: &str, i: usize) -> anyhow::Result<Vec<f
 /// The section over seeds: per world, each model's success % as mean ± 95 % CI, and the
 /// pipeline `beside`'s in the same worlds beside it; empty when no run drove the worlds.
 pub(super) fn seeds_section(runs: &Runs, beside: Option<&Runs>) -> anyhow::Result<String> {
-    let Some(first) = runs.iter().find_map(|(p, _)| kept(p).ok().flatten()) else {
+    let ours = success_by_world(runs)?;
+    if ours.is_empty() {
         return Ok(String::new());
-    };
-    let (head, rule) = match beside {
+    }
+    let theirs = beside.map(success_by_world).transpose()?;
+    let (head, rule) = match theirs {
         Some(_) => (" beside: general | beside: switching |", "---:|---:|"),
         None => ("", ""),
     };
@@ -130,17 +138,15 @@ pub(super) fn seeds_section(runs: &Runs, beside: Option<&Runs>) -> anyhow::Resul
         "\n{HEADING}| world | general: success % | switching: success % |{head}\n\
          |---|---:|---:|{rule}\n"
     );
-    let pm = |xs: &[f64]| match mean_ci(xs) {
-        _ if xs.is_empty() => "-".to_string(),
-        (m, h) if h.is_finite() => format!("{m:.1} ± {h:.1}"),
-        (m, _) => format!("{m:.1}"),
-    };
-    for w in &first {
-        md += &format!("| {} |", w.name);
-        for r in std::iter::once(runs).chain(beside) {
-            for i in 0..2 {
-                md += &format!(" {} |", pm(&success_over_seeds(r, &w.name, i)?));
-            }
+    for (name, models) in &ours {
+        md += &format!("| {name} |");
+        let mut cells: Vec<&[f64]> = models.iter().map(Vec::as_slice).collect();
+        if let Some(t) = &theirs {
+            let same = t.iter().find(|(n, _)| n == name).map(|(_, m)| m);
+            cells.extend((0..2).map(|i| same.map_or(&[][..], |m| m[i].as_slice())));
+        }
+        for xs in cells {
+            md += &format!(" {} |", mean_pm(xs, 1));
         }
         md += "\n";
     }

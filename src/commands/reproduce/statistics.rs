@@ -14,6 +14,24 @@ pub(crate) fn mean_ci(xs: &[f64]) -> (f64, f64) {
     (mean, t975(n - 1) * sd / (n as f64).sqrt())
 }
 
+/// `mean ± half` of an interval with `digits` decimals: the mean alone where there is no
+/// interval (one value), `-` where there is no mean (no value).
+pub(crate) fn interval((mean, half): (f64, f64), digits: usize) -> String {
+    match (mean.is_finite(), half.is_finite()) {
+        (false, _) => "-".into(),
+        (true, false) => format!("{mean:.digits$}"),
+        (true, true) => format!("{mean:.digits$} ± {half:.digits$}"),
+    }
+}
+
+/// [`interval`] of the mean of `xs` ([`mean_ci`]), `-` for none.
+pub(crate) fn mean_pm(xs: &[f64], digits: usize) -> String {
+    if xs.is_empty() {
+        return "-".into();
+    }
+    interval(mean_ci(xs), digits)
+}
+
 /// The two-sided 95 % quantile of Student's t with `df` degrees of freedom.
 fn t975(df: usize) -> f64 {
     // A standard t exists for every df >= 1, the only ones `mean_ci` asks for.
