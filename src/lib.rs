@@ -9,4 +9,5 @@
 
 pub mod commands;
 pub mod error;
+pub mod onnx;
 pub mod runtime;

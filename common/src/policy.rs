@@ -235,6 +235,11 @@ impl Policy {
         Ok(())
     }
 
+    /// The clip of normalised observations, ±this.
+    pub fn obs_clip(&self) -> f32 {
+        self.obs_clip
+    }
+
     pub fn log_std(&self) -> &[f32] {
         let at = self.layout.log_std();
         &self.weights[at..at + self.layout.act_dim]

@@ -5,6 +5,7 @@ mod bench;
 mod check_config;
 mod clean;
 mod evaluate;
+mod export;
 mod map;
 mod reproduce;
 mod run;
@@ -34,6 +35,9 @@ pub enum Command {
     /// Policies on named worlds (`--worlds`: nominal, slippery, heavy, latency, …): success
     /// and reach time per world and policy on the same seeded courses, a table and a chart.
     Evaluate(evaluate::EvaluateArgs),
+    /// What a robot needs to drive outside lavatube: each actor as ONNX and `.policy`, rows to
+    /// check a runtime against, and the control settings (`controller.toml`).
+    Export(export::ExportArgs),
     /// Replace a running run's learner (new hyperparameters or checkpoint); the sim keeps going.
     SwapLearner(swap::SwapArgs),
     /// The paper's terrain analysis (SPEC S7) on recorded telemetry: Table 3 and Figs. 5–8.
@@ -69,6 +73,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Join(args) => run::join(args),
         Command::Reproduce(args) => reproduce::reproduce(args),
         Command::Evaluate(args) => evaluate::evaluate(args),
+        Command::Export(args) => export::export_command(args),
         Command::SwapLearner(args) => swap::swap_learner_command(args),
         Command::Analyze(args) => analyze::analyze(args),
         Command::CheckConfig(args) => check_config::check_config(&args),
