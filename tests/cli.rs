@@ -134,3 +134,44 @@ fn analyze_runs_the_estimators_analysis() {
     assert_eq!(code, 1, "a missing input is a user error: {stderr}");
     assert!(stderr.contains("/no/such/traces.csv"), "{stderr}");
 }
+
+#[test]
+fn world_export_writes_the_floor_or_refuses_the_config() {
+    let (dir, path, _) = config("[sim.terrain]\nborder = 0.5\n");
+    let obj = dir.path().join("floor.obj");
+    let (code, stdout, stderr) = lavatube(&[
+        "world",
+        "export",
+        "--config",
+        path.to_str().expect("utf-8"),
+        "--out",
+        obj.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    let text = std::fs::read_to_string(&obj).expect("obj");
+    let vertices = text.lines().filter(|l| l.starts_with("v ")).count();
+    let faces = text.lines().filter(|l| l.starts_with("f ")).count();
+    assert!(
+        stdout.contains(&format!("{vertices} vertices, {faces} triangles")),
+        "{stdout}"
+    );
+    assert!(
+        vertices > 1000 && faces > vertices,
+        "{vertices} vertices, {faces} faces"
+    );
+
+    let (bad, path, _) = config("[sim.terrain]\nborder = -1.0\n");
+    let obj = bad.path().join("floor.obj");
+    let (code, _, stderr) = lavatube(&[
+        "world",
+        "export",
+        "--config",
+        path.to_str().expect("utf-8"),
+        "--out",
+        obj.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(code, 1, "{stderr}");
+    assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
+    assert!(stderr.contains("border"), "{stderr}");
+    assert!(!obj.exists());
+}

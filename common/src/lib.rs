@@ -15,6 +15,7 @@ pub mod ipc;
 pub mod logging;
 #[cfg(feature = "plot")]
 pub mod map;
+pub mod obj;
 pub mod observation;
 #[cfg(feature = "plot")]
 pub mod plot;

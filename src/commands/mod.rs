@@ -11,6 +11,7 @@ mod reproduce;
 mod run;
 mod status;
 mod swap;
+mod world;
 
 pub use crate::error::{EXIT_FAILURE, EXIT_USER, UserError, exit_code};
 use std::process::ExitCode;
@@ -48,6 +49,9 @@ pub enum Command {
     /// Draw a run's map again (the world, every robot's path by the terrain it acted for, targets,
     /// successes and failures), from its run directory or a telemetry CSV.
     Map(map::MapArgs),
+    /// The world a config describes, as a file: `world export --out floor.obj`.
+    #[command(subcommand)]
+    World(world::WorldCommand),
     /// List runs with shared-memory resources and their processes.
     Status,
     /// Measure throughput stage by stage (physics, policy, iceoryx2, learner sync and async,
@@ -82,6 +86,7 @@ pub fn dispatch(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::BenchEcho(args) => bench::echo(args),
         Command::Map(args) => map::map_command(args),
         Command::Status => status::status(),
+        Command::World(command) => world::world(command),
         Command::Clean { run_id } => clean::clean(run_id.as_deref()),
     }
 }
