@@ -19,7 +19,8 @@ use std::process::ExitCode;
 
 #[derive(Debug, clap::Args)]
 pub struct ExportArgs {
-    /// A run directory (every learner's newest checkpoint, with the run's config.toml), a
+    /// A run directory (each slot's frozen checkpoint or its learner's newest, with the run's
+    /// config.toml), a
     /// checkpoint (`.ckpt`) or a `.policy` file (exported as the general model).
     pub source: PathBuf,
     /// The directory to write into (created; files of the same names are replaced).
@@ -113,15 +114,22 @@ fn sources(args: &ExportArgs) -> anyhow::Result<(Config, Vec<Actor>)> {
         ))
         .into());
     }
+    let cfg = Config::load(&cfg_path)?;
     let actors: Vec<Actor> = PolicySlot::ALL
         .into_iter()
         .filter_map(|slot| {
-            let newest = checkpoints_in(&run_dir::learner_dir(src, slot))
-                .ok()?
-                .pop()?;
+            let checkpoint = match cfg.run.frozen.get(&slot) {
+                Some(frozen) => frozen.clone(),
+                None => {
+                    checkpoints_in(&run_dir::learner_dir(src, slot))
+                        .ok()?
+                        .pop()?
+                        .1
+                }
+            };
             Some(Actor {
                 slot,
-                checkpoint: Some(newest.1),
+                checkpoint: Some(checkpoint),
                 file: None,
             })
         })
@@ -129,7 +137,19 @@ fn sources(args: &ExportArgs) -> anyhow::Result<(Config, Vec<Actor>)> {
     if actors.is_empty() {
         return Err(UserError(format!("{} holds no learner checkpoint", src.display())).into());
     }
-    Ok((Config::load(&cfg_path)?, actors))
+    let gone = actors
+        .iter()
+        .filter_map(|a| a.checkpoint.as_ref())
+        .find(|c| !c.is_file());
+    if let Some(gone) = gone {
+        return Err(UserError(format!(
+            "{}: its run.frozen checkpoint {} is gone",
+            src.display(),
+            gone.display()
+        ))
+        .into());
+    }
+    Ok((cfg, actors))
 }
 
 /// A policy that does not take lavatube's observation or give its action cannot drive.
