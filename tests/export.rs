@@ -198,3 +198,44 @@ fn bad_sources_are_refused_in_one_line() {
         assert!(stderr.contains(says), "{}: {stderr}", source.display());
     }
 }
+
+#[test]
+fn a_switching_run_exports_the_checkpoints_it_drove_with() {
+    let dir = tempfile::tempdir().expect("tempdir");
+    let mut cfg = common::Config::default();
+    cfg.ppo.hidden = vec![16, 16];
+    let layout = PolicyLayout::new(10, &[16, 16], 2);
+    let mut frozen = String::new();
+    for (slot, seed) in [("flat", 1), ("rough", 2)] {
+        let learner = learner_proc::Learner::new(&cfg, layout.clone(), seed).expect("learner");
+        let ckpt = learner
+            .save_checkpoint(&dir.path().join(slot))
+            .expect("checkpoint");
+        frozen += &format!("{slot} = {:?}\n", ckpt.to_str().expect("utf-8"));
+    }
+    let run = dir.path().join("run");
+    std::fs::create_dir(&run).expect("run dir");
+    let config = format!(
+        "[run]\nlearners = []\n\n[run.frozen]\n{frozen}\n[sim]\nacting = \"switch\"\n\n[ppo]\nhidden = [16, 16]\n"
+    );
+    std::fs::write(run.join("config.toml"), config).expect("config");
+    let out = dir.path().join("export");
+    let (code, stdout, stderr) = export(&[
+        run.to_str().expect("utf-8"),
+        "--out",
+        out.to_str().expect("utf-8"),
+    ]);
+    assert_eq!(code, 0, "{stdout}{stderr}");
+    assert!(stdout.contains("2 actors (flat, rough)"), "{stdout}");
+    assert!(stdout.contains("fitted online"), "{stdout}");
+    for slot in ["flat", "rough"] {
+        assert!(out.join(format!("{slot}.onnx")).is_file(), "{slot}");
+    }
+    assert!(!out.join("general.onnx").exists());
+    // The two actors are the two checkpoints: their check rows differ.
+    let rows =
+        |slot: &str| std::fs::read_to_string(out.join(format!("{slot}.check.csv"))).expect("rows");
+    assert_ne!(rows("flat"), rows("rough"));
+    let controller = std::fs::read_to_string(out.join("controller.toml")).expect("controller.toml");
+    assert!(controller.contains("acting = \"switch\""), "{controller}");
+}

@@ -11,7 +11,7 @@ use super::reproduce::stages::{checkpoints_in, export};
 use crate::error::UserError;
 use crate::onnx::{self, Described};
 use anyhow::Context;
-use common::config::PolicySlot;
+use common::config::{Acting, PolicySlot};
 use common::observation::OBS_TERMS;
 use common::{ACT_DIM, Config, OBS_DIM, Policy, run_dir};
 use std::path::{Path, PathBuf};
@@ -77,6 +77,13 @@ pub fn export_command(args: ExportArgs) -> anyhow::Result<ExitCode> {
             .join(", "),
         args.out.display()
     );
+    let e = &cfg.estimator;
+    if cfg.sim.acting == Acting::Switch && e.model.is_none() && e.kinds_model.is_none() {
+        println!(
+            "note: the run switched on a terrain model its estimator fitted online, which no file \
+             holds; name one with estimator.model or estimator.kinds-model to export it"
+        );
+    }
     Ok(ExitCode::SUCCESS)
 }
 
