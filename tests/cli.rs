@@ -135,11 +135,12 @@ fn analyze_runs_the_estimators_analysis() {
     assert!(stderr.contains("/no/such/traces.csv"), "{stderr}");
 }
 
-#[test]
-fn world_export_writes_the_floor_or_refuses_the_config() {
-    let (dir, path, _) = config("[sim.terrain]\nborder = 0.5\n");
+/// `lavatube world export` of a config with `body`: the config's temp dir (held), the OBJ
+/// path, and the exit code, stdout and stderr.
+fn world_export(body: &str) -> (tempfile::TempDir, PathBuf, (i32, String, String)) {
+    let (dir, path, _) = config(body);
     let obj = dir.path().join("floor.obj");
-    let (code, stdout, stderr) = lavatube(&[
+    let ran = lavatube(&[
         "world",
         "export",
         "--config",
@@ -147,6 +148,12 @@ fn world_export_writes_the_floor_or_refuses_the_config() {
         "--out",
         obj.to_str().expect("utf-8"),
     ]);
+    (dir, obj, ran)
+}
+
+#[test]
+fn world_export_writes_the_floor_or_refuses_the_config() {
+    let (_dir, obj, (code, stdout, stderr)) = world_export("[sim.terrain]\nborder = 0.5\n");
     assert_eq!(code, 0, "{stderr}");
     let text = std::fs::read_to_string(&obj).expect("obj");
     let vertices = text.lines().filter(|l| l.starts_with("v ")).count();
@@ -160,16 +167,7 @@ fn world_export_writes_the_floor_or_refuses_the_config() {
         "{vertices} vertices, {faces} faces"
     );
 
-    let (bad, path, _) = config("[sim.terrain]\nborder = -1.0\n");
-    let obj = bad.path().join("floor.obj");
-    let (code, _, stderr) = lavatube(&[
-        "world",
-        "export",
-        "--config",
-        path.to_str().expect("utf-8"),
-        "--out",
-        obj.to_str().expect("utf-8"),
-    ]);
+    let (_bad, obj, (code, _, stderr)) = world_export("[sim.terrain]\nborder = -1.0\n");
     assert_eq!(code, 1, "{stderr}");
     assert_eq!(stderr.trim().lines().count(), 1, "{stderr}");
     assert!(stderr.contains("border"), "{stderr}");
