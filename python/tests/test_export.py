@@ -39,9 +39,9 @@ def test_onnxruntime_takes_the_simulators_actions(tmp_path, bin_dir):
 
     rows = np.loadtxt(out / "general.check.csv", delimiter=",", skiprows=1, dtype=np.float32)
     assert rows.shape == (ROWS, 12)
-    session = ort.InferenceSession(str(out / "general.onnx"), providers=["CPUExecutionProvider"])
-    assert [i.name for i in session.get_inputs()] == ["obs"]
-    (actions,) = session.run(["action"], {"obs": rows[:, :10]})
+    actor = ort.InferenceSession(str(out / "general.onnx"), providers=["CPUExecutionProvider"])
+    assert [i.name for i in actor.get_inputs()] == ["obs"]
+    (actions,) = actor.run(["action"], {"obs": rows[:, :10]})
     assert np.abs(actions - rows[:, 10:]).max() <= 1e-5
     # Both clips are exercised: actions at the limit, observations far past the normaliser's.
     assert (np.abs(rows[:, 10:]) == 3.0).any(axis=1).mean() > 0.05
