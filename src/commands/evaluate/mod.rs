@@ -8,7 +8,7 @@ mod table;
 pub(super) mod worlds;
 
 use super::reproduce::evaluation::{course_ticks, drive, drive_courses};
-use super::reproduce::stages::{checkpoints_in, export};
+use super::reproduce::stages::{Weights, checkpoints_in, export};
 use crate::error::UserError;
 use anyhow::Context;
 use common::config::{AreaKind, EpisodeStart, PolicySlot};
@@ -53,14 +53,7 @@ pub struct EvaluateArgs {
 /// A policy to evaluate: its label and where its actor is.
 struct Policy {
     label: String,
-    source: Source,
-}
-
-enum Source {
-    /// A `.policy` file, driven as it is.
-    File(PathBuf),
-    /// A checkpoint, exported into the output directory first.
-    Checkpoint(PathBuf),
+    source: Weights,
 }
 
 pub fn evaluate(args: EvaluateArgs) -> anyhow::Result<ExitCode> {
@@ -167,20 +160,19 @@ fn policy(arg: &str) -> anyhow::Result<Policy> {
                 path.display()
             ))
         })?;
-        Source::Checkpoint(newest.last().map(|(_, c)| c.clone()).unwrap_or_default())
-    } else if path.extension().is_some_and(|e| e == "ckpt") {
-        Source::Checkpoint(path)
+        Weights::Checkpoint(newest.last().map(|(_, c)| c.clone()).unwrap_or_default())
     } else {
-        Source::File(path)
+        Weights::of_file(path)
     };
     Ok(Policy { label, source })
 }
 
-/// The `.policy` file of `p`: its own, or its checkpoint's exported into `out/policies`.
+/// The `.policy` file of `p`: its own, or its checkpoint's exported into `out/policies`
+/// first.
 fn weights_of(p: &Policy, out: &Path, obs_clip: f64) -> anyhow::Result<PathBuf> {
     let ckpt = match &p.source {
-        Source::File(file) => return Ok(file.clone()),
-        Source::Checkpoint(ckpt) => ckpt,
+        Weights::File(file) => return Ok(file.clone()),
+        Weights::Checkpoint(ckpt) => ckpt,
     };
     let dir = out.join("policies");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;

@@ -7,7 +7,7 @@
 mod check;
 mod controller;
 
-use super::reproduce::stages::{checkpoints_in, export};
+use super::reproduce::stages::{Weights, checkpoints_in, export};
 use crate::error::UserError;
 use crate::onnx::{self, Described};
 use anyhow::Context;
@@ -38,8 +38,7 @@ pub struct ExportArgs {
 /// One actor to export: its slot, and where its weights come from.
 struct Actor {
     slot: PolicySlot,
-    checkpoint: Option<PathBuf>,
-    file: Option<PathBuf>,
+    weights: Weights,
 }
 
 pub fn export_command(args: ExportArgs) -> anyhow::Result<ExitCode> {
@@ -49,14 +48,14 @@ pub fn export_command(args: ExportArgs) -> anyhow::Result<ExitCode> {
     let mut written = Vec::new();
     for a in &actors {
         let file = args.out.join(format!("{}.policy", a.slot.name()));
-        match (&a.checkpoint, &a.file) {
-            (Some(ckpt), _) => export(ckpt, &file, cfg.ppo.obs_clip)?,
-            (None, Some(src)) if src != &file => {
+        match &a.weights {
+            Weights::Checkpoint(ckpt) => export(ckpt, &file, cfg.ppo.obs_clip)?,
+            Weights::File(src) if src != &file => {
                 std::fs::copy(src, &file).with_context(|| {
                     format!("cannot copy {} to {}", src.display(), file.display())
                 })?;
             }
-            _ => {}
+            Weights::File(_) => {}
         }
         let bytes =
             std::fs::read(&file).with_context(|| format!("cannot read {}", file.display()))?;
@@ -98,11 +97,9 @@ fn sources(args: &ExportArgs) -> anyhow::Result<(Config, Vec<Actor>)> {
             Some(path) => Config::load(path)?,
             None => Config::default(),
         };
-        let is_ckpt = src.extension().is_some_and(|e| e == "ckpt");
         let actor = Actor {
             slot: PolicySlot::General,
-            checkpoint: is_ckpt.then(|| src.clone()),
-            file: (!is_ckpt).then(|| src.clone()),
+            weights: Weights::of_file(src.clone()),
         };
         return Ok((cfg, vec![actor]));
     }
@@ -122,6 +119,14 @@ fn sources(args: &ExportArgs) -> anyhow::Result<(Config, Vec<Actor>)> {
         .into());
     }
     let cfg = Config::load(&cfg_path)?;
+    if let Some(gone) = cfg.run.frozen.values().find(|c| !c.is_file()) {
+        return Err(UserError(format!(
+            "{}: its run.frozen checkpoint {} is gone",
+            src.display(),
+            gone.display()
+        ))
+        .into());
+    }
     let actors: Vec<Actor> = PolicySlot::ALL
         .into_iter()
         .filter_map(|slot| {
@@ -134,27 +139,12 @@ fn sources(args: &ExportArgs) -> anyhow::Result<(Config, Vec<Actor>)> {
                         .1
                 }
             };
-            Some(Actor {
-                slot,
-                checkpoint: Some(checkpoint),
-                file: None,
-            })
+            let weights = Weights::Checkpoint(checkpoint);
+            Some(Actor { slot, weights })
         })
         .collect();
     if actors.is_empty() {
         return Err(UserError(format!("{} holds no learner checkpoint", src.display())).into());
-    }
-    let gone = actors
-        .iter()
-        .filter_map(|a| a.checkpoint.as_ref())
-        .find(|c| !c.is_file());
-    if let Some(gone) = gone {
-        return Err(UserError(format!(
-            "{}: its run.frozen checkpoint {} is gone",
-            src.display(),
-            gone.display()
-        ))
-        .into());
     }
     Ok((cfg, actors))
 }

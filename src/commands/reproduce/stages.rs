@@ -198,6 +198,24 @@ pub(crate) fn checkpoints_in(learner: &Path) -> anyhow::Result<Vec<(u64, PathBuf
     Ok(files)
 }
 
+/// Where an actor's weights are: a `.policy` file, used as it is, or a checkpoint, exported
+/// first.
+pub(crate) enum Weights {
+    File(PathBuf),
+    Checkpoint(PathBuf),
+}
+
+impl Weights {
+    /// A file named on the command line: a checkpoint if it ends in `.ckpt`, else a `.policy`.
+    pub(crate) fn of_file(path: PathBuf) -> Self {
+        if path.extension().is_some_and(|e| e == "ckpt") {
+            Weights::Checkpoint(path)
+        } else {
+            Weights::File(path)
+        }
+    }
+}
+
 /// Exports a checkpoint's actor to `out` with `learner-proc export`, its observations
 /// clipped at `obs_clip` as the learner clipped them.
 pub(crate) fn export(ckpt: &Path, out: &Path, obs_clip: f64) -> anyhow::Result<()> {
