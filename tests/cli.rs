@@ -1,20 +1,10 @@
 //! The launcher's command line against bad input: one line naming what is wrong, exit code 1,
 //! and nothing started (no run directory, no shared memory).
 
-use std::path::PathBuf;
-use std::process::Command;
+mod support;
 
-fn lavatube(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .args(args)
-        .output()
-        .expect("launcher runs");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
+use std::path::PathBuf;
+use support::lavatube;
 
 /// A config file in a fresh temp dir (removed when the first value drops) whose out-dir is
 /// inside it too.

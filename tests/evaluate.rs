@@ -1,10 +1,11 @@
 //! `lavatube evaluate` as a user runs it: policies on the worlds of a file, every policy on
 //! the same courses, and bad input refused before anything starts.
 
+mod support;
+
 use common::Rng;
 use common::policy::{Policy, PolicyLayout};
 use std::path::Path;
-use std::process::Command;
 
 /// A small untrained actor (10 -> 16 -> 2) with seeded weights, as a `.policy` file.
 fn write_policy(path: &Path, seed: u64) {
@@ -20,16 +21,7 @@ fn write_policy(path: &Path, seed: u64) {
 }
 
 fn evaluate(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .arg("evaluate")
-        .args(args)
-        .output()
-        .expect("lavatube evaluate");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    support::lavatube(&[&["evaluate"], args].concat())
 }
 
 #[test]

@@ -2,11 +2,12 @@
 //! the simulator's actions on 10,000 observations (clipped extremes included), its metadata
 //! names the inputs, and bad sources are refused in one line.
 
+mod support;
+
 use common::Rng;
 use common::observation::OBS_TERMS;
 use common::policy::{Policy, PolicyLayout, Scratch};
 use std::path::Path;
-use std::process::Command;
 use tract_onnx::prelude::*;
 
 const ROWS: usize = 10_000;
@@ -32,16 +33,7 @@ fn write_policy(path: &Path, hidden: &[usize], obs: usize) {
 }
 
 fn export(args: &[&str]) -> (i32, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_lavatube"))
-        .arg("export")
-        .args(args)
-        .output()
-        .expect("lavatube export");
-    (
-        out.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
+    support::lavatube(&[&["export"], args].concat())
 }
 
 /// The check rows: observations and the actions beside them.

@@ -15,6 +15,20 @@ pub fn root() -> &'static Path {
     Path::new(env!("CARGO_MANIFEST_DIR"))
 }
 
+/// `lavatube ARGS` run to its end: its exit code, stdout and stderr.
+#[allow(dead_code)] // each test binary compiles this module; not all use every helper
+pub fn lavatube(args: &[&str]) -> (i32, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_lavatube"))
+        .args(args)
+        .output()
+        .expect("launcher runs");
+    (
+        out.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
 /// A launcher started by a test, its output captured in a file (so a chatty run cannot
 /// block on a full pipe).
 pub struct Launched {
